@@ -1,0 +1,140 @@
+"""Cable lengths with pulleys, the transmission matrix Z and its time derivative (paper §3.1).
+
+Routing (``shared/design/geometry-and-errata.md``): right cable j (j = 1..N) follows case (d)
+(strut routed, eq 6) on joints 1..j-1 and case (b) (eq 4) on joint j, where it is attached at D_j;
+the left cable N+1 follows case (c) (eq 5) on joints 1..N-1 and case (a) (eq 3) on joint N,
+attached at C_N.  Errata fixed: eq (8) uses l_r (cable 1 is a right cable), eq (7) uses L.
+
+Sign convention -- written here once, held by ``tests/test_conventions.py``:
+
+* ``cable_lengths`` returns the variable part l_c(alpha) - l_c(0) (zero at the straight pose).
+* Z_ij = -d l_cj / d alpha_i (eq 22): a cable that shortens as alpha_i grows has Z_ij > 0.
+* theta_j > 0 winds cable j onto its drum; theta = 0 at the straight rest pose.
+* Elongation (positive = stretched): ``x_c = l_c - l_c0 + (r_d/R) theta``, hence
+  ``Z^T alpha_dot = (r_d/R) theta_dot - x_c_dot``.  This replaces eqs (27)/(28), which contradict
+  eq (20); it flips the sign of every x_c-derivative term in eqs (31), (32), (34), (35), (38),
+  (44), (51)-(53), (60), (61).  For rigid cables, theta = -(R/r_d)(l_c - l_c0), eq (20).
+* Joint torques produced by cable tensions t (>= 0): tau = Z t (eq 30).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, check_alpha
+from neck_sim.params import NeckParams
+
+__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "CableKinematics",
+           "cable_kinematics", "elongation", "motor_angles_rigid"]
+
+
+class _Segments(NamedTuple):
+    """Per-joint variable lengths of the four routing cases, with d/dalpha and d2/dalpha2."""
+
+    a: tuple  # case (a), left cable on its attaching joint
+    b: tuple  # case (b), right cable on its attaching joint
+    c: tuple  # case (c), left cable passing a joint
+    d: tuple  # case (d), right cable passing a joint (strut routed)
+
+
+def _segments(alpha: np.ndarray, b: float, L: float, r: float) -> _Segments:
+    """Segments for joint angles of any shape, for bars b, diagonals L and pulleys r (m)."""
+    jl = _joint_local(alpha, b, L)
+    sd = jl.sides
+
+    def wrapped(l, dl, ddl, sign):
+        # Tangent from a pulley of radius r to the attachment point at distance l, eqs (3), (4).
+        t = np.sqrt(l * l - r * r)
+        val = t - r * np.arctan2(t, r) + sign * r * alpha / 2
+        d1 = dl * t / l + sign * r / 2
+        d2 = ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl
+        return val, d1, d2
+
+    seg_a = wrapped(sd.l_l, sd.dl_l, sd.ddl_l, -1.0)
+    seg_b = wrapped(sd.l_r, sd.dl_r, sd.ddl_r, +1.0)
+    seg_c = (sd.l_l - r * alpha, sd.dl_l - r, sd.ddl_l)
+    B = np.array([b / 2, 0.0])
+    v = jl.C - B
+    psi_ = np.arctan2(v[..., 1], v[..., 0])
+    dpsi, ddpsi = _psi_derivatives(jl, b, L)
+    seg_d = (r * (2 * psi_ - alpha), r * (2 * dpsi - 1), 2 * r * ddpsi)
+    return _Segments(seg_a, seg_b, seg_c, seg_d)
+
+
+def _geom(params: NeckParams) -> tuple[float, float, float]:
+    g = params.geometry
+    return g.b, g.L, g.r
+
+
+def _assemble_lengths(seg: _Segments, n: int) -> np.ndarray:
+    d_val = seg.d[0]
+    passed = np.cumsum(d_val, axis=-1) - d_val            # sum over joints i < j of case (d)
+    right = passed + seg.b[0]
+    left = np.sum(seg.c[0][..., : n - 1], axis=-1) + seg.a[0][..., n - 1]
+    return np.concatenate([right, left[..., None]], axis=-1)
+
+
+def _assemble_z(seg: _Segments, n: int, order: int) -> np.ndarray:
+    """-(d^order l_c / d alpha^order) arranged as an (..., N, N+1) matrix (order 1 or 2)."""
+    dd, db, dc, da = seg.d[order], seg.b[order], seg.c[order], seg.a[order]
+    upper = np.triu(np.ones((n, n)), 1)
+    right = dd[..., :, None] * upper + db[..., :, None] * np.eye(n)
+    left = np.concatenate([dc[..., : n - 1], da[..., n - 1:]], axis=-1)
+    return -np.concatenate([right, left[..., None]], axis=-1)
+
+
+def cable_lengths(alpha, params: NeckParams) -> np.ndarray:
+    """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for N joints), shape (..., N+1), m."""
+    n = params.n_joints
+    a = check_alpha(alpha, n)
+    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params)), n)
+    return _assemble_lengths(_segments(a, *_geom(params)), n) - zero
+
+
+def transmission_matrix(alpha, params: NeckParams) -> np.ndarray:
+    """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, N+1), m."""
+    n = params.n_joints
+    return _assemble_z(_segments(check_alpha(alpha, n), *_geom(params)), n, 1)
+
+
+def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
+    """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, N+1), m/s.
+
+    Column j of Z depends on alpha_i only through row i, so Zdot_ij = (dZ_ij/dalpha_i) alpha_dot_i.
+    """
+    n = params.n_joints
+    a = check_alpha(alpha, n)
+    ad = check_alpha(alpha_dot, n, "alpha_dot")
+    return _assemble_z(_segments(a, *_geom(params)), n, 2) * ad[..., :, None]
+
+
+class CableKinematics(NamedTuple):
+    lengths: np.ndarray  # (..., N+1) l_c - l_c0, m
+    Z: np.ndarray        # (..., N, N+1), m
+    Zdot: np.ndarray     # (..., N, N+1), m/s
+
+
+def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
+    """Lengths, Z and Zdot in one pass (what a dynamics step needs)."""
+    n = params.n_joints
+    a = check_alpha(alpha, n)
+    ad = check_alpha(alpha_dot, n, "alpha_dot")
+    seg = _segments(a, *_geom(params))
+    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params)), n)
+    return CableKinematics(_assemble_lengths(seg, n) - zero, _assemble_z(seg, n, 1),
+                           _assemble_z(seg, n, 2) * ad[..., :, None])
+
+
+def elongation(theta, alpha, params: NeckParams) -> np.ndarray:
+    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., N+1), m."""
+    a = params.actuation
+    return cable_lengths(alpha, params) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
+
+
+def motor_angles_rigid(alpha, params: NeckParams, elongation=None) -> np.ndarray:
+    """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., N+1), rad."""
+    a = params.actuation
+    x = 0.0 if elongation is None else np.asarray(elongation, dtype=float)
+    return (a.R / a.r_d) * (x - cable_lengths(alpha, params))

@@ -1,0 +1,299 @@
+"""Dynamics of the N-X neck: bar linkage, geared motors, friction and elastic cables (paper §3).
+
+The bar linkage of each X-joint has three moving rigid bodies (diagonals AD and BC, top bar CD);
+the base bar of joint 1 is the ground.  Bars are slender rods (I = m l^2 / 12).  With the
+closed-form kinematics of :mod:`neck_sim.analytic.geometry`, each body's velocity is J(alpha)
+alpha_dot and its velocity-dependent acceleration is h(alpha, alpha_dot); then
+
+    M_m = sum m J_p^T J_p + I J_phi^T J_phi,    c_m = sum m J_p^T h_p + I J_phi^T h_phi,
+
+the Lagrangian equations of the linkage.  g (``gravity_spring_torque``) is the gradient of the
+potential of gravity (along -y) and of the side springs.  Motors add (eqs 24, 26 corrected):
+
+    M = M_m + I_a (R/r_d)^2 Z Z^T,    c = c_m + I_a (R/r_d)^2 Z Zdot^T alpha_dot.
+
+Elastic cables use the sign convention of :mod:`neck_sim.analytic.cables`:
+x_c = l_c - l_c0 + (r_d/R) theta, so that eqs (29), (30) read
+
+    I_a theta_ddot = (r_d/R) (f - t_c - f_friction),    M_m alpha_ddot + c_m + g = Z t_c.
+
+Shapes: alpha, alpha_dot (..., N); forces, tensions (..., N+1).  SI units throughout.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic.cables import cable_kinematics, cable_lengths, transmission_matrix
+from neck_sim.analytic.geometry import _cross, _joint_local, check_alpha, forward_kinematics, rotation
+from neck_sim.params import NeckParams
+
+__all__ = ["LinkageDynamics", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
+           "potential_energy", "kinetic_energy", "motor_friction", "cable_tension", "rigid_acceleration",
+           "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
+
+_S = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90 deg
+
+
+class LinkageDynamics(NamedTuple):
+    """M_m (..., N, N) kg m^2, c_m (..., N) N m, g (..., N) N m of the bar linkage without motors."""
+
+    M: np.ndarray
+    c: np.ndarray
+    g: np.ndarray
+
+
+def _bodies(jl, b: float, L: float, alpha_i):
+    """(mass key, length, q, q', q'', beta', beta'') of the moving bars of one joint, local frame."""
+    A = np.array([-b / 2, 0.0])
+    B = np.array([b / 2, 0.0])
+    ones = np.ones_like(alpha_i)
+    ad = ((A + jl.D) / 2, jl.dD / 2, jl.ddD / 2,
+          _cross(jl.D - A, jl.dD) / L ** 2, _cross(jl.D - A, jl.ddD) / L ** 2)
+    bc = ((B + jl.C) / 2, jl.dC / 2, jl.ddC / 2,
+          _cross(jl.C - B, jl.dC) / L ** 2, _cross(jl.C - B, jl.ddC) / L ** 2)
+    cd = ((jl.C + jl.D) / 2, (jl.dC + jl.dD) / 2, (jl.ddC + jl.ddD) / 2, ones, 0 * ones)
+    return (("diagonal", L, ad), ("diagonal", L, bc), ("bar", b, cd))
+
+
+def linkage_dynamics(alpha, alpha_dot, params: NeckParams) -> LinkageDynamics:
+    """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched."""
+    g = params.geometry
+    n = g.n_joints
+    a = check_alpha(alpha, n)
+    ad = check_alpha(alpha_dot, n, "alpha_dot")
+    a, ad = np.broadcast_arrays(a, ad)
+    batch = a.shape[:-1]
+    inert = params.inertia
+    masses = {"diagonal": inert.diagonal_mass, "bar": inert.bar_mass}
+    grav = inert.gravity
+
+    M = np.zeros(batch + (n, n))
+    c = np.zeros(batch + (n,))
+    G = np.zeros(batch + (n,))
+    p_J = np.zeros(batch + (2, n))     # Jacobian of the current frame origin
+    p_h = np.zeros(batch + (2,))       # its velocity-product acceleration
+    phi = np.zeros(batch)
+    phi_dot = np.zeros(batch)
+    eye = np.eye(n)
+    jl_all = _joint_local(a, g.b, g.L)
+
+    for i in range(n):
+        ai, adi = a[..., i], ad[..., i]
+        jl = _joint_slice(jl_all, i)
+        rot = rotation(phi)
+        lt = (np.arange(n) < i).astype(float)
+        bodies = list(_bodies(jl, g.b, g.L, ai))
+        if i == n - 1 and inert.payload_mass > 0:
+            q, dq, ddq = bodies[2][2][:3]
+            bodies.append(("payload", 0.0, (q, dq, ddq, 0 * ai, 0 * ai)))
+        for key, length, (q, dq, ddq, dbeta, ddbeta) in bodies:
+            m = inert.payload_mass if key == "payload" else masses[key]
+            Rq = np.einsum("...jk,...k->...j", rot, q)
+            Rdq = np.einsum("...jk,...k->...j", rot, dq)
+            Rddq = np.einsum("...jk,...k->...j", rot, ddq)
+            SRq = Rq @ _S.T
+            SRdq = Rdq @ _S.T
+            J = p_J + SRq[..., :, None] * lt + Rdq[..., :, None] * eye[i]
+            h = (p_h - (phi_dot ** 2)[..., None] * Rq + 2 * (phi_dot * adi)[..., None] * SRdq
+                 + (adi ** 2)[..., None] * Rddq)
+            Jphi = lt + dbeta[..., None] * eye[i]
+            hphi = ddbeta * adi ** 2
+            inertia = m * length ** 2 / 12.0
+            M += m * np.einsum("...ki,...kj->...ij", J, J) + inertia * Jphi[..., :, None] * Jphi[..., None, :]
+            c += m * np.einsum("...ki,...k->...i", J, h) + inertia * Jphi * hphi[..., None]
+            G += m * grav * J[..., 1, :]
+            if key == "bar":                # the top bar is the next joint's base frame
+                next_J, next_h = J, h
+        p_J, p_h = next_J, next_h
+        phi = phi + ai
+        phi_dot = phi_dot + adi
+
+    sd = jl_all.sides
+    k = np.asarray(params.springs.stiffness)
+    l0 = params.springs.rest_length
+    G += k * ((sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r)
+    return LinkageDynamics(M, c, G)
+
+
+def _joint_slice(jl, i):
+    """Select joint i from a _JointLocal computed for all joints at once."""
+    sides = type(jl.sides)(*(x[..., i] for x in jl.sides))
+    return type(jl)(sides, *(x[..., i, :] for x in jl[1:]))
+
+
+def mass_matrix(alpha, params: NeckParams, motors: bool = True) -> np.ndarray:
+    """Inertia matrix M(alpha) of eq (24) (with motors) or M_m (without), (..., N, N), kg m^2."""
+    a = check_alpha(alpha, params.n_joints)
+    M = linkage_dynamics(a, np.zeros_like(a), params).M
+    if motors:
+        Z = transmission_matrix(a, params)
+        M = M + params.actuation.reflected_inertia * Z @ np.swapaxes(Z, -1, -2)
+    return M
+
+
+def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True) -> np.ndarray:
+    """Coriolis/centrifugal vector c(alpha, alpha_dot) of eq (26) corrected, (..., N), N m.
+
+    Motor part: I_a (R/r_d)^2 Z Zdot^T alpha_dot (erratum 5: not Zdot Z^T).
+    """
+    c = linkage_dynamics(alpha, alpha_dot, params).c
+    if motors:
+        ck = cable_kinematics(alpha, alpha_dot, params)
+        zdt_ad = np.einsum("...ij,...i->...j", ck.Zdot, np.asarray(alpha_dot, dtype=float))
+        c = c + params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", ck.Z, zdt_ad)
+    return c
+
+
+def gravity_spring_torque(alpha, params: NeckParams) -> np.ndarray:
+    """g(alpha): gradient of the gravity and side-spring potential (eq 25), (..., N), N m."""
+    a = check_alpha(alpha, params.n_joints)
+    return linkage_dynamics(a, np.zeros_like(a), params).g
+
+
+def potential_energy(alpha, params: NeckParams) -> np.ndarray:
+    """Gravity + side-spring potential (J), from the forward kinematics (independent of g)."""
+    kin = forward_kinematics(alpha, params)
+    inert = params.inertia
+    corners = kin.corners                                  # (..., N, 4, 2): A, B, C, D
+    y_ad = 0.5 * (corners[..., 0, 1] + corners[..., 3, 1])
+    y_bc = 0.5 * (corners[..., 1, 1] + corners[..., 2, 1])
+    y_cd = 0.5 * (corners[..., 2, 1] + corners[..., 3, 1])
+    v = inert.gravity * (inert.diagonal_mass * (y_ad + y_bc) + inert.bar_mass * y_cd).sum(-1)
+    v = v + inert.gravity * inert.payload_mass * kin.head_position[..., 1]
+    left = np.linalg.norm(corners[..., 2, :] - corners[..., 0, :], axis=-1)
+    right = np.linalg.norm(corners[..., 3, :] - corners[..., 1, :], axis=-1)
+    k = np.asarray(params.springs.stiffness)
+    l0 = params.springs.rest_length
+    return v + 0.5 * (k * ((left - l0) ** 2 + (right - l0) ** 2)).sum(-1)
+
+
+def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True) -> np.ndarray:
+    """1/2 alpha_dot^T M alpha_dot (J)."""
+    ad = np.asarray(alpha_dot, dtype=float)
+    return 0.5 * np.einsum("...i,...ij,...j->...", ad, mass_matrix(alpha, params, motors), ad)
+
+
+def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
+    """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., N+1), N.
+
+    Expressed as a force along the cable; ``f_s`` defaults to the plant's ``params.friction.f_s``.
+    """
+    fs = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
+    return (2 / np.pi) * np.arctan(params.friction.c_s * np.asarray(theta_dot, dtype=float)) * fs
+
+
+def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
+    """Tension-only cable tension of eq (54) solved for t, (..., N+1), N.
+
+    t = (k x + c_a x_dot) / (1 - lambda x) for x > 0, 0 when slack (x <= 0) and never negative.
+    Above ``cables.t_cap`` the elastic part continues with its tangent stiffness, so there is no
+    pole at x = 1/lambda.  Defaults are the plant's ``params.cables``.
+    """
+    cab = params.cables
+    k = np.asarray(cab.k if k is None else k, dtype=float)
+    lam = np.asarray(cab.lam if lam is None else lam, dtype=float)
+    c_a = np.asarray(cab.c_a if c_a is None else c_a, dtype=float)
+    x = np.asarray(x, dtype=float)
+    x_dot = np.asarray(x_dot, dtype=float)
+    x_star = cab.t_cap / (k + lam * cab.t_cap)             # elongation where t reaches t_cap
+    xe = np.minimum(x, x_star)
+    denom = 1.0 - lam * xe
+    elastic = k * xe / denom + np.maximum(x - x_star, 0.0) * k / (1.0 - lam * x_star) ** 2
+    t = elastic + c_a * x_dot / denom
+    return np.where(x > 0, np.maximum(t, 0.0), 0.0)
+
+
+def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True) -> np.ndarray:
+    """alpha_ddot of eq (32) with inextensible cables (x_c = 0), (..., N), rad/s^2.
+
+    Motor speeds for friction follow eq (21): theta_dot = (R/r_d) Z^T alpha_dot.
+    """
+    act = params.actuation
+    ck = cable_kinematics(alpha, alpha_dot, params)
+    lk = linkage_dynamics(alpha, alpha_dot, params)
+    Zt = np.swapaxes(ck.Z, -1, -2)
+    ad = np.asarray(alpha_dot, dtype=float)
+    ia = act.reflected_inertia
+    M = lk.M + ia * ck.Z @ Zt
+    c = lk.c + ia * np.einsum("...ij,...j->...i", ck.Z, np.einsum("...ij,...i->...j", ck.Zdot, ad))
+    f = np.asarray(f, dtype=float)
+    if friction:
+        theta_dot = (act.R / act.r_d) * np.einsum("...ij,...i->...j", ck.Z, ad)
+        f = f - motor_friction(theta_dot, params)
+    rhs = np.einsum("...ij,...j->...i", ck.Z, f) - c - lk.g
+    return np.linalg.solve(M, rhs[..., None])[..., 0]
+
+
+class ElasticState(NamedTuple):
+    """State of eqs (29)-(30): joint angles/speeds (..., N) and motor angles/speeds (..., N+1)."""
+
+    alpha: np.ndarray
+    alpha_dot: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+
+
+def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True):
+    """(alpha_ddot, theta_ddot, tension) of eqs (29), (30) with elastic cables (eq 54)."""
+    act = params.actuation
+    ck = cable_kinematics(state.alpha, state.alpha_dot, params)
+    ratio = act.r_d / act.R
+    x = ck.lengths + ratio * state.theta
+    x_dot = -np.einsum("...ij,...i->...j", ck.Z, state.alpha_dot) + ratio * state.theta_dot
+    t = cable_tension(x, x_dot, params)
+    lk = linkage_dynamics(state.alpha, state.alpha_dot, params)
+    rhs = np.einsum("...ij,...j->...i", ck.Z, t) - lk.c - lk.g
+    alpha_ddot = np.linalg.solve(lk.M, rhs[..., None])[..., 0]
+    fr = motor_friction(state.theta_dot, params) if friction else 0.0
+    theta_ddot = ratio * (np.asarray(f, dtype=float) - t - fr) / act.I_a
+    return alpha_ddot, theta_ddot, t
+
+
+def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], duration: float,
+                     params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
+                     alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10):
+    """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (N+1,) N; returns (t, ElasticState)."""
+    from scipy.integrate import solve_ivp
+
+    n = params.n_joints
+    a0 = check_alpha(alpha0, n, "alpha0")
+    th0 = np.asarray(theta0, dtype=float).reshape(n + 1)
+    ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
+    td0 = np.zeros(n + 1) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
+
+    def rhs(t, y):
+        st = ElasticState(y[:n], y[n:2 * n], y[2 * n:3 * n + 1], y[3 * n + 1:])
+        add, tdd, _ = elastic_derivative(st, forces(t), params, friction)
+        return np.concatenate([st.alpha_dot, add, st.theta_dot, tdd])
+
+    times = np.arange(0.0, duration + 0.5 * sample_dt, sample_dt)
+    sol = solve_ivp(rhs, (0.0, times[-1]), np.concatenate([a0, ad0, th0, td0]), t_eval=times,
+                    method="LSODA", rtol=rtol, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"simulate_elastic: integration failed ({sol.message})")
+    y = sol.y.T
+    return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:3 * n + 1], y[:, 3 * n + 1:])
+
+
+def simulate_rigid(alpha0, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,
+                   *, sample_dt: float = 1e-3, friction: bool = True, alpha_dot0=None,
+                   rtol: float = 1e-10, atol: float = 1e-12):
+    """Integrate eq (32) with inextensible cables (scipy DOP853); returns (t, alpha, alpha_dot)."""
+    from scipy.integrate import solve_ivp
+
+    n = params.n_joints
+    a0 = check_alpha(alpha0, n, "alpha0")
+    ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
+
+    def rhs(t, y):
+        return np.concatenate([y[n:], rigid_acceleration(y[:n], y[n:], forces(t), params, friction)])
+
+    times = np.arange(0.0, duration + 0.5 * sample_dt, sample_dt)
+    sol = solve_ivp(rhs, (0.0, times[-1]), np.concatenate([a0, ad0]), t_eval=times, method="DOP853",
+                    rtol=rtol, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"simulate_rigid: integration failed ({sol.message})")
+    return sol.t, sol.y[:n].T, sol.y[n:].T

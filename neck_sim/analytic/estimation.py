@@ -1,0 +1,127 @@
+"""Joint angles from motor angles (paper §4.1): the triangular method (eq 33) and pseudo-inverse
+increments (eq 35, corrected).
+
+Both accept cable elongations x_c (zero for inextensible cables) with the sign convention of
+:mod:`neck_sim.analytic.cables`: x_c = l_c - l_c0 + (r_d/R) theta, so the cable length the
+motors allow is l_c - l_c0 = x_c - (r_d/R) theta.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from neck_sim.analytic.cables import _segments, transmission_matrix
+from neck_sim.analytic.geometry import check_alpha
+from neck_sim.params import NeckParams
+
+__all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "estimate_alpha_pinv"]
+
+
+class UnreachableError(ValueError):
+    """Motor angles that no pose within the joint range explains."""
+
+
+def _check_cables(arr, n_cables: int, name: str) -> np.ndarray:
+    a = np.asarray(arr, dtype=float)
+    if a.ndim == 0 or a.shape[-1] != n_cables:
+        raise ValueError(f"{name}: expected shape (..., {n_cables}) (one value per cable), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or infinity")
+    return a
+
+
+def _right_segments(alpha: np.ndarray, params: NeckParams):
+    """Case (b) value and derivative and case (d) value for joint angles of any shape."""
+    g = params.geometry
+    seg = _segments(alpha, g.b, g.L, g.r)
+    return seg.b[0], seg.b[1], seg.d[0]
+
+
+def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol: float = 1e-13,
+                              max_iter: int = 60) -> np.ndarray:
+    """alpha_hat from the N right cables, joint after joint (eq 33), shape (..., N), rad.
+
+    Joint j's right cable length is sum_{i<j} case (d)(alpha_i) + case (b)(alpha_j); case (b) is
+    strictly increasing in alpha_j, so each joint is one monotone root, found by safeguarded Newton
+    iterations inside [-alpha_max, alpha_max] (to ``tol`` rad, far below one encoder count).
+    The left cable's reading is not used.  Raises :class:`UnreachableError` naming the cable and
+    the first offending sample when no angle in the joint range fits.
+    """
+    n = params.n_joints
+    act = params.actuation
+    th = _check_cables(theta, n + 1, "theta")
+    x = np.zeros_like(th) if elongation is None else _check_cables(elongation, n + 1, "elongation")
+    th, x = np.broadcast_arrays(th, x)
+    target = x - (act.r_d / act.R) * th                   # l_c - l_c0 per cable
+    amax = params.geometry.alpha_max
+    b0, _, d0 = _right_segments(np.zeros(1), params)
+    b_lo, _, _ = _right_segments(np.array([-amax]), params)
+    b_hi, _, _ = _right_segments(np.array([amax]), params)
+    alpha = np.zeros(th.shape[:-1] + (n,))
+    passed = np.zeros(th.shape[:-1])                      # sum of case (d) terms (minus their rest value)
+    for j in range(n):
+        want = target[..., j] - passed + b0[0]            # required case (b) value on joint j
+        bad = (want < b_lo[0] - 1e-15) | (want > b_hi[0] + 1e-15)
+        if np.any(bad):
+            idx = np.argwhere(bad)[0]
+            raise UnreachableError(
+                f"theta: cable c{j + 1} length at sample {tuple(int(i) for i in idx)} needs joint {j + 1} "
+                f"outside |alpha| <= {amax:.4g} rad (unreachable pose or wrong encoder offset)")
+        lo = np.full(want.shape, -amax)
+        hi = np.full(want.shape, amax)
+        a = np.zeros(want.shape)
+        for _ in range(max_iter):
+            val, der, _ = _right_segments(a, params)
+            err = val - want
+            lo = np.where(err < 0, a, lo)
+            hi = np.where(err > 0, a, hi)
+            step = a - err / der
+            outside = (step <= lo) | (step >= hi)
+            new = np.where(outside, 0.5 * (lo + hi), step)
+            done = np.max(np.abs(new - a), initial=0.0) < tol
+            a = new
+            if done:
+                break
+        alpha[..., j] = a
+        passed = passed + _right_segments(a, params)[2] - d0[0]
+    return alpha
+
+
+def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) -> np.ndarray:
+    """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
+
+    Z has full row rank, so (Z^T)^+ = (Z Z^T)^{-1} Z.
+    """
+    n = params.n_joints
+    act = params.actuation
+    a = check_alpha(alpha_hat, n, "alpha_hat")
+    dth = _check_cables(d_theta, n + 1, "d_theta")
+    rhs = (act.r_d / act.R) * dth
+    if d_elongation is not None:
+        rhs = rhs - _check_cables(d_elongation, n + 1, "d_elongation")
+    Z = transmission_matrix(a, params)
+    zz = Z @ np.swapaxes(Z, -1, -2)
+    return np.linalg.solve(zz, np.einsum("...ij,...j->...i", Z, rhs)[..., None])[..., 0]
+
+
+def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None) -> np.ndarray:
+    """alpha_hat over a time series by eq (35) corrected, all N+1 cables, shape (..., T, N), rad.
+
+    ``theta`` (..., T, N+1); ``elongation`` (..., T, N+1) or None; ``alpha0`` (..., N) the pose at
+    the first sample (default straight).  Vectorised over the leading batch axes, sequential in T.
+    """
+    n = params.n_joints
+    th = _check_cables(theta, n + 1, "theta")
+    if th.ndim < 2:
+        raise ValueError(f"theta: expected a time series of shape (..., T, {n + 1}), got {th.shape}")
+    x = None if elongation is None else _check_cables(elongation, n + 1, "elongation")
+    if x is not None and x.shape[-2] != th.shape[-2]:
+        raise ValueError(f"elongation: {x.shape[-2]} samples but theta has {th.shape[-2]}")
+    a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_alpha(alpha0, n, "alpha0")
+    out = np.empty(th.shape[:-1] + (n,))
+    out[..., 0, :] = a
+    for t in range(1, th.shape[-2]):
+        dx = None if x is None else x[..., t, :] - x[..., t - 1, :]
+        a = a + pinv_increment(a, th[..., t, :] - th[..., t - 1, :], params, dx)
+        out[..., t, :] = a
+    return out

@@ -1,0 +1,169 @@
+"""X-joint geometry and forward kinematics of the N-joint chain (paper §2.1, eqs 1, 2, 7).
+
+Conventions (held by tests, see ``shared/design/geometry-and-errata.md``):
+
+* One X-joint in its base-bar frame: x along A->B, y up, origin at the middle of AB,
+  ``A = (-b/2, 0)``, ``B = (b/2, 0)``, ``C = A + l_l (-sin(a/2), cos(a/2))``,
+  ``D = C + b (cos a, sin a)``.  Diagonals AD and BC have length L; springs lie on AC (left side,
+  length l_l) and BD (right side, length l_r).
+* alpha > 0 is counter-clockwise: the neck bends to the left, the right side gets longer.
+* The top bar CD of joint i is the base bar of joint i+1: frame i+1 has its origin at the middle
+  of CD and is rotated by alpha_i.  Frame 1 is the ground; gravity acts along -y.
+
+All functions broadcast over leading batch axes; angles in rad, lengths in m.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.params import NeckParams
+
+__all__ = ["SideLengths", "side_lengths", "joint_corners", "psi", "Kinematics",
+           "forward_kinematics", "rotation", "check_alpha"]
+
+
+class SideLengths(NamedTuple):
+    """Side lengths of eqs (1), (2) and their first two derivatives with respect to alpha."""
+
+    l_l: np.ndarray
+    dl_l: np.ndarray
+    ddl_l: np.ndarray
+    l_r: np.ndarray
+    dl_r: np.ndarray
+    ddl_r: np.ndarray
+
+
+def check_alpha(alpha, n_joints: int, name: str = "alpha") -> np.ndarray:
+    """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem."""
+    a = np.asarray(alpha, dtype=float)
+    if a.ndim == 0 or a.shape[-1] != n_joints:
+        raise ValueError(f"{name}: expected shape (..., {n_joints}) (one angle per X-joint), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or infinity")
+    return a
+
+
+def side_lengths(alpha, params: NeckParams) -> SideLengths:
+    """Left and right side lengths l_l, l_r (eqs 1, 2) and d/dalpha, d2/dalpha2; shape of ``alpha``."""
+    g = params.geometry
+    return _sides(np.asarray(alpha, dtype=float), g.b, g.L)
+
+
+def _sides(a: np.ndarray, b: float, L: float) -> SideLengths:
+    s, c = np.sin(a / 2), np.cos(a / 2)
+    q = np.sqrt(L * L - (b * c) ** 2)
+    u = 0.5 * np.sin(a)                       # = s c
+    dq = b * b * u / (2 * q)
+    ddq = b * b * np.cos(a) / (4 * q) - b ** 4 * u * u / (4 * q ** 3)
+    return SideLengths(q - b * s, dq - b * c / 2, ddq + b * s / 4,
+                       q + b * s, dq + b * c / 2, ddq - b * s / 4)
+
+
+def rotation(phi) -> np.ndarray:
+    """2-D rotation matrices, shape (..., 2, 2)."""
+    phi = np.asarray(phi, dtype=float)
+    c, s = np.cos(phi), np.sin(phi)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def _cross(u, v):
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+class _JointLocal(NamedTuple):
+    """Corners C, D of one joint in its base frame with first and second alpha-derivatives."""
+
+    sides: SideLengths
+    C: np.ndarray
+    dC: np.ndarray
+    ddC: np.ndarray
+    D: np.ndarray
+    dD: np.ndarray
+    ddD: np.ndarray
+
+
+def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
+    sd = _sides(a, b, L)
+    s, c = np.sin(a / 2), np.cos(a / 2)
+    e = np.stack([-s, c], -1)                 # side direction
+    de = np.stack([-c / 2, -s / 2], -1)
+    dde = np.stack([s / 4, -c / 4], -1)
+    A = np.stack([np.full_like(a, -b / 2), np.zeros_like(a)], -1)
+    ll, dll, ddll = sd.l_l[..., None], sd.dl_l[..., None], sd.ddl_l[..., None]
+    C = A + ll * e
+    dC = dll * e + ll * de
+    ddC = ddll * e + 2 * dll * de + ll * dde
+    top = np.stack([np.cos(a), np.sin(a)], -1)
+    dtop = np.stack([-np.sin(a), np.cos(a)], -1)
+    D = C + b * top
+    dD = dC + b * dtop
+    ddD = ddC - b * top
+    return _JointLocal(sd, C, dC, ddC, D, dD, ddD)
+
+
+def joint_corners(alpha, params: NeckParams) -> np.ndarray:
+    """Corners A, B, C, D of single X-joints in their own base frames, shape (..., 4, 2)."""
+    g = params.geometry
+    a = np.asarray(alpha, dtype=float)
+    jl = _joint_local(a, g.b, g.L)
+    A = np.broadcast_to(np.array([-g.b / 2, 0.0]), jl.C.shape)
+    B = np.broadcast_to(np.array([g.b / 2, 0.0]), jl.C.shape)
+    return np.stack([A, B, jl.C, jl.D], -2)
+
+
+def psi(alpha, params: NeckParams) -> np.ndarray:
+    """Angle psi of the diagonal B->C from the direction A->B (eqs 6, 7, by atan2); shape of alpha.
+
+    120 deg at alpha = 0 for the paper's b, L.
+    """
+    g = params.geometry
+    a = np.asarray(alpha, dtype=float)
+    sd = _sides(a, g.b, g.L)
+    x = -g.b - sd.l_l * np.sin(a / 2)
+    y = sd.l_l * np.cos(a / 2)
+    return np.arctan2(y, x)
+
+
+def _psi_derivatives(jl: _JointLocal, b: float, L: float):
+    """psi' and psi'' from the rod B->C of constant length L."""
+    B = np.array([b / 2, 0.0])
+    v = jl.C - B
+    return _cross(v, jl.dC) / (L * L), _cross(v, jl.ddC) / (L * L)
+
+
+class Kinematics(NamedTuple):
+    """Forward kinematics of the chain, world frame = base frame of joint 1.
+
+    corners: (..., N, 4, 2) A, B, C, D of every joint; frame_origin: (..., N+1, 2) middle of each
+    bar (index 0 the fixed base bar, N the head); frame_angle: (..., N+1) bar angles;
+    head_position (..., 2) and head_angle (...) are those of the top bar of joint N.
+    """
+
+    corners: np.ndarray
+    frame_origin: np.ndarray
+    frame_angle: np.ndarray
+    head_position: np.ndarray
+    head_angle: np.ndarray
+
+
+def forward_kinematics(alpha, params: NeckParams) -> Kinematics:
+    """Corners, bar frames and head pose of the N-joint neck for joint angles alpha (..., N)."""
+    g = params.geometry
+    a = check_alpha(alpha, g.n_joints)
+    batch = a.shape[:-1]
+    origin = np.zeros(batch + (2,))
+    phi = np.zeros(batch)
+    origins, angles, corners = [origin], [phi], []
+    local = joint_corners(a, params)                      # (..., N, 4, 2)
+    for i in range(g.n_joints):
+        rot = rotation(phi)
+        world = origin[..., None, :] + np.einsum("...jk,...pk->...pj", rot, local[..., i, :, :])
+        corners.append(world)
+        origin = 0.5 * (world[..., 2, :] + world[..., 3, :])
+        phi = phi + a[..., i]
+        origins.append(origin)
+        angles.append(phi)
+    return Kinematics(np.stack(corners, -3), np.stack(origins, -2), np.stack(angles, -1), origin, phi)
