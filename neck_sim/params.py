@@ -180,6 +180,8 @@ class Cables:
     k: tuple = _f(None, "N/m", "paper Table 2: 5378, 5364, 6231, 1908 N/m")
     lam: tuple = _f(None, "1/m", "paper Table 2: 103.3, 88.7, 53.2, 120.9 1/m")
     c_a: tuple = _f(None, "N s/m", "design: 50 N s/m (paper could not identify damping)")
+    k_linear: tuple | None = _f(None, "N/m", "paper Table 1: constant-stiffness cable model (model 1, lambda = 0) "
+                                             "10454, 9256, 8319, 5336 N/m; what a model-1 estimator believes")
     t_cap: float = _f(1000.0, "N",
                       "assumption: above this tension eq (54) continues linearly (no 1/(1 - lambda x) pole)")
 
@@ -190,6 +192,8 @@ class Cables:
         _check_array(self, "k", None, positive=True)
         _check_array(self, "lam", None, non_negative=True)
         _check_array(self, "c_a", None, non_negative=True)
+        if self.k_linear is not None:
+            _check_array(self, "k_linear", len(self.k), positive=True)
         _check_positive(self, "t_cap")
         if not (len(self.k) == len(self.lam) == len(self.c_a)):
             raise ParameterError(
@@ -313,7 +317,8 @@ def default_params(n_joints: int = 3) -> NeckParams:
         friction=Friction(f_s=_per_cable(n, (14.42, 17.65, 18.77), 16.18)),
         cables=Cables(k=_per_cable(n, (5378.0, 5364.0, 6231.0), 1908.0),
                       lam=_per_cable(n, (103.3, 88.7, 53.2), 120.9),
-                      c_a=_per_cable(n, (50.0,), 50.0)),
+                      c_a=_per_cable(n, (50.0,), 50.0),
+                      k_linear=_per_cable(n, (10454.0, 9256.0, 8319.0), 5336.0)),
         control=Control(),
         sensors=Sensors(),
     )
