@@ -1,0 +1,132 @@
+"""Tension distribution of the over-actuated neck (paper §6.2, eqs 62-65), for any N.
+
+The desired joint torque Gamma (N,) must be produced by N + 1 cable forces: Gamma = Z f with
+Z = (Z1 Z2) (eq 23), Z1 (N, N) for the right cables c1..cN, Z2 (N,) for the long left cable.
+Because Z1 is invertible, the solutions form a one-parameter family in the long cable's force
+s = f_{N+1} (eq 63):
+
+    f = u + v s,    u = (Z1^{-1} Gamma, 0),    v = (-Z1^{-1} Z2, 1).
+
+Over the workspace every entry of -Z1^{-1} Z2 is positive (about 0.5 to 2.1 in [-90, 90] deg^N
+for the paper's geometry), so every force grows with s: the smallest s meeting all lower bounds
+lb (eq 65) minimises every force and hence |f| -- it is the largest of the N + 1 candidates
+s_j = (lb_j - u_j) / v_j.  Forces above f_max are then clipped to f_max and reported as saturated
+(the torque is then no longer exact).  A pose where some entry of -Z1^{-1} Z2 is not positive
+has no such family (tensions could not all stay positive): :class:`TensionInfeasibleError`.
+
+Shapes: Z (..., N, N+1) m, Gamma (..., N) N m, forces and bounds (..., N+1) N.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.params import NeckParams
+
+__all__ = ["TensionInfeasibleError", "TensionDistribution", "tension_lower_bounds", "distribute_tensions"]
+
+
+class TensionInfeasibleError(ValueError):
+    """No positive one-parameter family of cable forces exists (pose outside the workspace)."""
+
+
+class TensionDistribution(NamedTuple):
+    """Result of :func:`distribute_tensions`.
+
+    forces: (..., N+1) N, the commanded forces, clipped to f_max.
+    requested: (..., N+1) N, the forces before clipping (Z requested = Gamma exactly).
+    saturated: (..., N+1) bool, True where requested > f_max.
+    binding: (...) int, index of the cable whose lower bound set the long cable's force.
+    """
+
+    forces: np.ndarray
+    requested: np.ndarray
+    saturated: np.ndarray
+    binding: np.ndarray
+
+    @property
+    def any_saturated(self) -> np.ndarray:
+        """(...) bool: at least one cable was clipped, so Z f != Gamma."""
+        return self.saturated.any(axis=-1)
+
+
+def tension_lower_bounds(theta_dot_d, theta_ddot_d, params: NeckParams, *, f_s=None,
+                         t_min: float | None = None, f_min: float | None = None) -> np.ndarray:
+    """Lower bound on each commanded force, eq (65), (..., N+1) N.
+
+    lb_i = max(t_min + (2/pi) arctan(c_s theta_dot_d_i) f_s(i) + (R/r_d) I_a theta_ddot_d_i, f_min)
+
+    with the *desired* motor speeds theta_dot_d (rad/s) and accelerations theta_ddot_d (rad/s^2),
+    as the paper does to avoid force jumps.  ``f_s`` (N+1,) N is the friction the controller
+    believes in; None leaves friction out (control law 1).  ``t_min``/``f_min`` default to
+    ``params.actuation``.
+    """
+    act = params.actuation
+    n1 = params.n_cables
+    td = _cables(theta_dot_d, n1, "theta_dot_d")
+    tdd = _cables(theta_ddot_d, n1, "theta_ddot_d")
+    t_min = act.t_min if t_min is None else float(t_min)
+    f_min = act.f_min if f_min is None else float(f_min)
+    bound = t_min + (act.R / act.r_d) * act.I_a * tdd
+    if f_s is not None:
+        fs = _cables(f_s, n1, "f_s")
+        bound = bound + (2 / np.pi) * np.arctan(params.friction.c_s * td) * fs
+    return np.maximum(bound, f_min)
+
+
+def distribute_tensions(Z, gamma, lower, f_max: float) -> TensionDistribution:
+    """Cable forces producing ``gamma`` with every force at least ``lower`` (eqs 63-65), batched.
+
+    Z (..., N, N+1) m, gamma (..., N) N m, lower (..., N+1) N, f_max N.  Raises
+    :class:`TensionInfeasibleError` naming the first offending sample when Z1 is singular or some
+    entry of -Z1^{-1} Z2 is not positive.
+    """
+    Z = np.asarray(Z, dtype=float)
+    if Z.ndim < 2 or Z.shape[-1] != Z.shape[-2] + 1:
+        raise ValueError(f"Z: expected shape (..., N, N+1), got {Z.shape}")
+    n = Z.shape[-2]
+    gamma = np.asarray(gamma, dtype=float)
+    if gamma.ndim == 0 or gamma.shape[-1] != n:
+        raise ValueError(f"gamma: expected shape (..., {n}) (one torque per joint), got {gamma.shape}")
+    lower = _cables(lower, n + 1, "lower")
+    for name, arr in (("Z", Z), ("gamma", gamma)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name}: contains NaN or infinity")
+    if not (np.isfinite(f_max) and f_max > 0):
+        raise ValueError(f"f_max: must be finite and positive, got {f_max}")
+    batch = np.broadcast_shapes(Z.shape[:-2], gamma.shape[:-1], lower.shape[:-1])
+    Z = np.broadcast_to(Z, batch + Z.shape[-2:])
+    gamma = np.broadcast_to(gamma, batch + (n,))
+    lower = np.broadcast_to(lower, batch + (n + 1,))
+
+    Z1, Z2 = Z[..., :, :n], Z[..., :, n]
+    rhs = np.stack([gamma, -Z2], axis=-1)                                 # (..., N, 2)
+    try:
+        sol = np.linalg.solve(Z1, rhs)
+    except np.linalg.LinAlgError:
+        raise TensionInfeasibleError("Z1 (right cables) is singular: pose outside the workspace") from None
+    u = np.concatenate([sol[..., 0], np.zeros(batch + (1,))], axis=-1)  # eq (63), first term
+    v = np.concatenate([sol[..., 1], np.ones(batch + (1,))], axis=-1)   # eq (63), direction
+    bad = ~(v > 0) | ~np.isfinite(v)
+    if np.any(bad):
+        idx = np.argwhere(bad)[0]
+        raise TensionInfeasibleError(
+            f"-Z1^-1 Z2 has a non-positive entry for cable c{idx[-1] + 1} at sample {tuple(int(i) for i in idx[:-1])}: "
+            f"no positive cable forces produce every torque there (pose outside the workspace)")
+    candidates = (lower - u) / v                                          # eq (65) met with equality
+    binding = np.argmax(candidates, axis=-1)
+    s = np.take_along_axis(candidates, binding[..., None], axis=-1)
+    requested = u + v * s
+    saturated = requested > f_max
+    return TensionDistribution(np.minimum(requested, f_max), requested, saturated, binding)
+
+
+def _cables(arr, n_cables: int, name: str) -> np.ndarray:
+    a = np.asarray(arr, dtype=float)
+    if a.ndim == 0 or a.shape[-1] != n_cables:
+        raise ValueError(f"{name}: expected shape (..., {n_cables}) (one value per cable), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or infinity")
+    return a
