@@ -39,28 +39,43 @@ class _Segments(NamedTuple):
     d: tuple  # case (d), right cable passing a joint (strut routed)
 
 
-def _segments(alpha: np.ndarray, b: float, L: float, r: float) -> _Segments:
-    """Segments for joint angles of any shape, for bars b, diagonals L and pulleys r (m)."""
-    jl = _joint_local(alpha, b, L)
-    sd = jl.sides
+def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2)) -> _Segments:
+    """Segments for joint angles of any shape, for bars b, diagonals L and pulleys r (m).
 
-    def wrapped(l, dl, ddl, sign):
-        # Tangent from a pulley of radius r to the attachment point at distance l, eqs (3), (4).
-        t = np.sqrt(l * l - r * r)
-        val = t - r * np.arctan2(t, r) + sign * r * alpha / 2
-        d1 = dl * t / l + sign * r / 2
-        d2 = ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl
-        return val, d1, d2
-
-    seg_a = wrapped(sd.l_l, sd.dl_l, sd.ddl_l, -1.0)
-    seg_b = wrapped(sd.l_r, sd.dl_r, sd.ddl_r, +1.0)
-    seg_c = (sd.l_l - r * alpha, sd.dl_l - r, sd.ddl_l)
-    B = np.array([b / 2, 0.0])
-    v = jl.C - B
-    psi_ = np.arctan2(v[..., 1], v[..., 0])
-    dpsi, ddpsi = _psi_derivatives(jl, b, L)
-    seg_d = (r * (2 * psi_ - alpha), r * (2 * dpsi - 1), 2 * r * ddpsi)
-    return _Segments(seg_a, seg_b, seg_c, seg_d)
+    Only the derivative ``orders`` asked for are computed (the others are None): Z needs order 1
+    alone, and skipping the corner geometry of order 2 makes it several times cheaper.
+    """
+    want = set(orders)
+    half = alpha / 2
+    s, c = np.sin(half), np.cos(half)
+    q = np.sqrt(L * L - (b * c) ** 2)
+    dq = (b * b / 2) * s * c / q
+    l_l, l_r = q - b * s, q + b * s
+    dl_l, dl_r = dq - (b / 2) * c, dq + (b / 2) * c
+    t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
+    if 2 in want:
+        jl = _joint_local(alpha, b, L)
+        ddl_l, ddl_r = jl.sides.ddl_l, jl.sides.ddl_r
+    seg = {}
+    # Tangent from a pulley of radius r to the attachment point at distance l, eqs (3), (4);
+    # sign -1 for case (a) (left cable, clockwise), +1 for case (b) (right cable).
+    for name, l, dl, t, sign in (("a", l_l, dl_l, t_l, -1.0), ("b", l_r, dl_r, t_r, 1.0)):
+        val = t - r * np.arctan2(t, r) + sign * r * half if 0 in want else None
+        d1 = dl * t / l + sign * r / 2 if 1 in want else None
+        d2 = None
+        if 2 in want:
+            ddl = ddl_l if name == "a" else ddl_r
+            d2 = ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl
+        seg[name] = (val, d1, d2)
+    seg["c"] = (l_l - r * alpha if 0 in want else None, dl_l - r if 1 in want else None,
+                ddl_l if 2 in want else None)
+    # psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant length L.
+    psi_ = np.arctan2(l_l * c, -b - l_l * s) if 0 in want else None
+    dpsi = (0.5 * l_l * l_l + 0.5 * b * l_l * s - b * c * dl_l) / (L * L) if 1 in want else None
+    ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else None
+    seg["d"] = (r * (2 * psi_ - alpha) if 0 in want else None, r * (2 * dpsi - 1) if 1 in want else None,
+                2 * r * ddpsi if 2 in want else None)
+    return _Segments(seg["a"], seg["b"], seg["c"], seg["d"])
 
 
 def _geom(params: NeckParams) -> tuple[float, float, float]:
@@ -79,24 +94,28 @@ def _assemble_lengths(seg: _Segments, n: int) -> np.ndarray:
 def _assemble_z(seg: _Segments, n: int, order: int) -> np.ndarray:
     """-(d^order l_c / d alpha^order) arranged as an (..., N, N+1) matrix (order 1 or 2)."""
     dd, db, dc, da = seg.d[order], seg.b[order], seg.c[order], seg.a[order]
-    upper = np.triu(np.ones((n, n)), 1)
-    right = dd[..., :, None] * upper + db[..., :, None] * np.eye(n)
-    left = np.concatenate([dc[..., : n - 1], da[..., n - 1:]], axis=-1)
-    return -np.concatenate([right, left[..., None]], axis=-1)
+    out = np.zeros(db.shape[:-1] + (n, n + 1))
+    rows, cols = np.triu_indices(n, 1)                    # joint i passed by right cable j > i
+    out[..., rows, cols] = -dd[..., rows]
+    idx = np.arange(n)
+    out[..., idx, idx] = -db
+    out[..., : n - 1, n] = -dc[..., : n - 1]
+    out[..., n - 1, n] = -da[..., n - 1]
+    return out
 
 
 def cable_lengths(alpha, params: NeckParams) -> np.ndarray:
     """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for N joints), shape (..., N+1), m."""
     n = params.n_joints
     a = check_alpha(alpha, n)
-    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params)), n)
-    return _assemble_lengths(_segments(a, *_geom(params)), n) - zero
+    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
+    return _assemble_lengths(_segments(a, *_geom(params), orders=(0,)), n) - zero
 
 
 def transmission_matrix(alpha, params: NeckParams) -> np.ndarray:
     """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, N+1), m."""
     n = params.n_joints
-    return _assemble_z(_segments(check_alpha(alpha, n), *_geom(params)), n, 1)
+    return _assemble_z(_segments(check_alpha(alpha, n), *_geom(params), orders=(1,)), n, 1)
 
 
 def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
@@ -107,7 +126,7 @@ def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
     n = params.n_joints
     a = check_alpha(alpha, n)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
-    return _assemble_z(_segments(a, *_geom(params)), n, 2) * ad[..., :, None]
+    return _assemble_z(_segments(a, *_geom(params), orders=(2,)), n, 2) * ad[..., :, None]
 
 
 class CableKinematics(NamedTuple):
@@ -122,7 +141,7 @@ def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
     a = check_alpha(alpha, n)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     seg = _segments(a, *_geom(params))
-    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params)), n)
+    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
     return CableKinematics(_assemble_lengths(seg, n) - zero, _assemble_z(seg, n, 1),
                            _assemble_z(seg, n, 2) * ad[..., :, None])
 

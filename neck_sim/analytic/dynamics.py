@@ -27,14 +27,13 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths, transmission_matrix
-from neck_sim.analytic.geometry import _cross, _joint_local, check_alpha, forward_kinematics, rotation
+from neck_sim.analytic.geometry import _cross, _joint_local, check_alpha, forward_kinematics
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
            "potential_energy", "kinetic_energy", "motor_friction", "cable_tension", "rigid_acceleration",
            "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
 
-_S = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90 deg
 
 
 class LinkageDynamics(NamedTuple):
@@ -45,83 +44,96 @@ class LinkageDynamics(NamedTuple):
     g: np.ndarray
 
 
-def _bodies(jl, b: float, L: float, alpha_i):
-    """(mass key, length, q, q', q'', beta', beta'') of the moving bars of one joint, local frame."""
-    A = np.array([-b / 2, 0.0])
-    B = np.array([b / 2, 0.0])
-    ones = np.ones_like(alpha_i)
-    ad = ((A + jl.D) / 2, jl.dD / 2, jl.ddD / 2,
-          _cross(jl.D - A, jl.dD) / L ** 2, _cross(jl.D - A, jl.ddD) / L ** 2)
-    bc = ((B + jl.C) / 2, jl.dC / 2, jl.ddC / 2,
-          _cross(jl.C - B, jl.dC) / L ** 2, _cross(jl.C - B, jl.ddC) / L ** 2)
-    cd = ((jl.C + jl.D) / 2, (jl.dC + jl.dD) / 2, (jl.ddC + jl.ddD) / 2, ones, 0 * ones)
-    return (("diagonal", L, ad), ("diagonal", L, bc), ("bar", b, cd))
+def _exclusive_cumsum(x: np.ndarray, axis: int) -> np.ndarray:
+    return np.cumsum(x, axis=axis) - x
 
 
 def linkage_dynamics(alpha, alpha_dot, params: NeckParams) -> LinkageDynamics:
-    """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched."""
+    """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched over leading axes.
+
+    Frame i (base bar of joint i) has world angle phi_i = sum_{k<i} alpha_k and origin p_i; the
+    top-bar midpoint m_i(alpha_i) of joint i is the origin of frame i+1.  The recursion
+    p_{i+1} = p_i + R(phi_i) m_i gives, as exclusive cumulative sums over joints, the frame
+    Jacobians J_{p_i} and velocity-product accelerations h_{p_i}; a body point q(alpha_i) of joint i
+    then has J = J_{p_i} + S R q [k < i] + R q' [k = i] and
+    h = h_{p_i} - phi_dot^2 R q + 2 phi_dot alpha_dot_i S R q' + alpha_dot_i^2 R q''.
+    """
     g = params.geometry
     n = g.n_joints
     a = check_alpha(alpha, n)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     a, ad = np.broadcast_arrays(a, ad)
-    batch = a.shape[:-1]
+    b, L = g.b, g.L
     inert = params.inertia
-    masses = {"diagonal": inert.diagonal_mass, "bar": inert.bar_mass}
-    grav = inert.gravity
+    jl = _joint_local(a, b, L)                                    # corners per joint, (..., N, 2)
+    A = np.array([-b / 2, 0.0])
+    B = np.array([b / 2, 0.0])
+    m, dm, ddm = (jl.C + jl.D) / 2, (jl.dC + jl.dD) / 2, (jl.ddC + jl.ddD) / 2
+    # moving bodies of each joint: diagonal AD, diagonal BC, top bar CD -> axis -2 of size 3
+    q = np.stack([(A + jl.D) / 2, (B + jl.C) / 2, m], -2)          # (..., N, 3, 2)
+    dq = np.stack([jl.dD / 2, jl.dC / 2, dm], -2)
+    ddq = np.stack([jl.ddD / 2, jl.ddC / 2, ddm], -2)
+    one = np.ones_like(a)
+    dbeta = np.stack([_cross(jl.D - A, jl.dD) / L ** 2, _cross(jl.C - B, jl.dC) / L ** 2, one], -1)
+    ddbeta = np.stack([_cross(jl.D - A, jl.ddD) / L ** 2, _cross(jl.C - B, jl.ddC) / L ** 2, 0 * one], -1)
+    mass = np.array([inert.diagonal_mass, inert.diagonal_mass, inert.bar_mass])
+    rot_inertia = mass * np.array([L, L, b]) ** 2 / 12.0
 
-    M = np.zeros(batch + (n, n))
-    c = np.zeros(batch + (n,))
-    G = np.zeros(batch + (n,))
-    p_J = np.zeros(batch + (2, n))     # Jacobian of the current frame origin
-    p_h = np.zeros(batch + (2,))       # its velocity-product acceleration
-    phi = np.zeros(batch)
-    phi_dot = np.zeros(batch)
+    phi = _exclusive_cumsum(a, -1)
+    phi_dot = _exclusive_cumsum(ad, -1)
+    cphi, sphi = np.cos(phi), np.sin(phi)
+
+    def rot(v, extra=0):  # R(phi_i) v for v of shape (..., N, [3,] 2)
+        cc = cphi.reshape(cphi.shape + (1,) * extra)
+        ss = sphi.reshape(sphi.shape + (1,) * extra)
+        return np.stack([cc * v[..., 0] - ss * v[..., 1], ss * v[..., 0] + cc * v[..., 1]], -1)
+
+    def turn(v):  # S v: rotation by +90 deg
+        return np.stack([-v[..., 1], v[..., 0]], -1)
+
+    Rm, Rdm, Rddm = rot(m), rot(dm), rot(ddm)
+    lt = np.tril(np.ones((n, n)), -1)                             # lt[i, k] = 1 if k < i
     eye = np.eye(n)
-    jl_all = _joint_local(a, g.b, g.L)
+    # increments of the frame-origin Jacobian and bias from joint j to j+1
+    dJ = turn(Rm)[..., :, :, None] * lt[:, None, :] + Rdm[..., :, :, None] * eye[:, None, :]   # (..., N, 2, N)
+    dh = ((-phi_dot ** 2)[..., None] * Rm + (2 * phi_dot * ad)[..., None] * turn(Rdm)
+          + (ad ** 2)[..., None] * Rddm)                                                       # (..., N, 2)
+    J_o = _exclusive_cumsum(dJ, -3)
+    h_o = _exclusive_cumsum(dh, -2)
 
-    for i in range(n):
-        ai, adi = a[..., i], ad[..., i]
-        jl = _joint_slice(jl_all, i)
-        rot = rotation(phi)
-        lt = (np.arange(n) < i).astype(float)
-        bodies = list(_bodies(jl, g.b, g.L, ai))
-        if i == n - 1 and inert.payload_mass > 0:
-            q, dq, ddq = bodies[2][2][:3]
-            bodies.append(("payload", 0.0, (q, dq, ddq, 0 * ai, 0 * ai)))
-        for key, length, (q, dq, ddq, dbeta, ddbeta) in bodies:
-            m = inert.payload_mass if key == "payload" else masses[key]
-            Rq = np.einsum("...jk,...k->...j", rot, q)
-            Rdq = np.einsum("...jk,...k->...j", rot, dq)
-            Rddq = np.einsum("...jk,...k->...j", rot, ddq)
-            SRq = Rq @ _S.T
-            SRdq = Rdq @ _S.T
-            J = p_J + SRq[..., :, None] * lt + Rdq[..., :, None] * eye[i]
-            h = (p_h - (phi_dot ** 2)[..., None] * Rq + 2 * (phi_dot * adi)[..., None] * SRdq
-                 + (adi ** 2)[..., None] * Rddq)
-            Jphi = lt + dbeta[..., None] * eye[i]
-            hphi = ddbeta * adi ** 2
-            inertia = m * length ** 2 / 12.0
-            M += m * np.einsum("...ki,...kj->...ij", J, J) + inertia * Jphi[..., :, None] * Jphi[..., None, :]
-            c += m * np.einsum("...ki,...k->...i", J, h) + inertia * Jphi * hphi[..., None]
-            G += m * grav * J[..., 1, :]
-            if key == "bar":                # the top bar is the next joint's base frame
-                next_J, next_h = J, h
-        p_J, p_h = next_J, next_h
-        phi = phi + ai
-        phi_dot = phi_dot + adi
+    Rq, Rdq, Rddq = rot(q, 1), rot(dq, 1), rot(ddq, 1)            # (..., N, 3, 2)
+    pd, adn = phi_dot[..., None, None], ad[..., None, None]
+    h = h_o[..., :, None, :] - pd ** 2 * Rq + 2 * pd * adn * turn(Rdq) + adn ** 2 * Rddq          # (..., N, 3, 2)
+    hphi = ddbeta * (ad ** 2)[..., None]                                                          # (..., N, 3)
 
-    sd = jl_all.sides
+    # Mass-weighted velocity rows of every body (x, y, rotation): M = W^T W, c = W^T h_w.
+    batch = a.shape[:-1]
+    w_lin = np.sqrt(mass)[:, None, None]
+    w_rot = np.sqrt(rot_inertia)[:, None]
+    W = np.empty(batch + (n, 3, 3, n))
+    J = W[..., :2, :]
+    np.add(J_o[..., :, None, :, :], turn(Rq)[..., None] * lt[:, None, None, :], out=J)
+    J += Rdq[..., None] * eye[:, None, None, :]                   # J: (..., N, 3, 2, N), unweighted here
+    G = inert.gravity * np.einsum("...ibk,b->...k", J[..., 1, :], mass)
+    Jh = J[..., n - 1, 2, :, :].copy()                            # head bar centre, for a payload
+    J *= w_lin
+    W[..., 2, :] = (lt[:, None, :] + dbeta[..., None] * eye[:, None, :]) * w_rot
+    hw = np.concatenate([h * w_lin[..., 0], (hphi * w_rot[:, 0])[..., None]], -1)
+    W = W.reshape(batch + (9 * n, n))
+    Wt = np.swapaxes(W, -1, -2)
+    M = Wt @ W
+    c = (Wt @ hw.reshape(batch + (9 * n, 1)))[..., 0]
+    if inert.payload_mass > 0:                                    # point mass at the head's bar centre
+        hh = h[..., n - 1, 2, :]
+        M = M + inert.payload_mass * np.einsum("...xk,...xl->...kl", Jh, Jh)
+        c = c + inert.payload_mass * np.einsum("...xk,...x->...k", Jh, hh)
+        G = G + inert.payload_mass * inert.gravity * Jh[..., 1, :]
+
+    sd = jl.sides
     k = np.asarray(params.springs.stiffness)
     l0 = params.springs.rest_length
-    G += k * ((sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r)
+    G = G + k * ((sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r)
     return LinkageDynamics(M, c, G)
-
-
-def _joint_slice(jl, i):
-    """Select joint i from a _JointLocal computed for all joints at once."""
-    sides = type(jl.sides)(*(x[..., i] for x in jl.sides))
-    return type(jl)(sides, *(x[..., i, :] for x in jl[1:]))
 
 
 def mass_matrix(alpha, params: NeckParams, motors: bool = True) -> np.ndarray:

@@ -33,7 +33,7 @@ def _check_cables(arr, n_cables: int, name: str) -> np.ndarray:
 def _right_segments(alpha: np.ndarray, params: NeckParams):
     """Case (b) value and derivative and case (d) value for joint angles of any shape."""
     g = params.geometry
-    seg = _segments(alpha, g.b, g.L, g.r)
+    seg = _segments(alpha, g.b, g.L, g.r, orders=(0, 1))
     return seg.b[0], seg.b[1], seg.d[0]
 
 
