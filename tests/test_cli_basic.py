@@ -1,0 +1,28 @@
+import json
+
+from neck_sim.cli import main
+
+
+def test_params_prints_sources(capsys):
+    assert main(["params"]) == 0
+    out = capsys.readouterr().out
+    assert "geometry.L" in out and "paper" in out
+
+
+def test_params_round_trip_through_file(tmp_path, capsys):
+    path = tmp_path / "p.toml"
+    assert main(["params", "--n-joints", "5", "-o", str(path)]) == 0
+    assert main(["params", "--load", str(path)]) == 0
+    assert "5" in capsys.readouterr().out
+
+
+def test_bad_file_is_a_clean_error(tmp_path, capsys):
+    assert main(["params", "--load", str(tmp_path / "missing.toml")]) == 2
+    assert "missing.toml" in capsys.readouterr().err
+
+
+def test_pulleys_json(tmp_path):
+    path = tmp_path / "p.json"
+    assert main(["pulleys", "--samples", "2000", "--json", str(path)]) == 0
+    data = json.loads(path.read_text())
+    assert data["samples"] == 2000 and 0 < data["torque_rel_diff"] < 1
