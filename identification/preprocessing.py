@@ -1,0 +1,381 @@
+"""Pre-processing of measured data for identification (paper §5.2.1).
+
+From the measured topics only (encoders and commanded forces at the control rate, joint angles
+from the camera at about 30 Hz) to synchronised, filtered signals and their derivatives on one
+slow grid:
+
+1. **Cutoff frequencies, chosen automatically** by Winter's residual analysis (D. A. Winter,
+   *Biomechanics and Motor Control of Human Movement*, 4th ed., 2009, §3.4.4.3). For a cutoff
+   f_c the residual R(f_c) = rms(x - filtfilt_{f_c}(x)); above the signal's band R falls
+   linearly with f_c (what is left is noise), and the straight line fitted to the upper half of
+   the band meets f_c = 0 at the noise rms a.  The chosen cutoff is the lowest f_c where
+   R(f_c) <= a: below it the filter starts to remove signal, above it it lets noise through.
+   Per group of channels the largest cutoff wins, so no channel loses its signal.  (The paper
+   cites "the method of [37]" without detail; this is the standard automatic choice.)
+2. **Zero-phase Butterworth filtering** (``scipy.signal.sosfiltfilt``, forward and reverse like
+   Matlab's ``filtfilt``) of theta and f at the control rate, then **central differences**
+   (``numpy.gradient``) for theta_dot, theta_ddot.
+3. **Decimation** by the largest integer factor q that keeps the rate at or above the camera's
+   (500 Hz / 16 = 31.25 Hz for the paper's 30 Hz video), with ``scipy.signal.decimate``
+   (order-8 Chebyshev type I anti-aliasing, zero phase) in stages of at most 13.  The filter's DC
+   gain is normalised to 1: scipy's default even-order Chebyshev I sits at the bottom of its
+   0.05 dB ripple at DC, and the forward-reverse pass squares that, so every stage would scale
+   the signal by 0.9886 -- 2.3 % of a 28 rad motor angle (0.5 mm of elongation) over two stages.
+4. **Camera angles linearly interpolated** onto that grid, filtered with their own automatic cutoff,
+   differentiated by central differences.
+5. **Common bandwidth** ("parallel filtering", as in Gautier's inverse-dynamics identification):
+   every slow-grid signal that enters one regression equation is filtered with the same cutoff,
+   the lower of the motor and camera cutoffs, so both sides of each equation see the same band.
+6. **Elongations** by the corrected eq (27), x_c = l_c(alpha_camera) - l_c0 + (r_d/R) theta
+   (sign convention of :mod:`neck_sim.analytic.cables`), and their first and second derivatives
+   by central differences on the slow grid (eq 44 needs the second, erratum 4).
+
+``fast`` keeps the control-rate signals (raw encoder angles, filtered motor speeds, commanded
+forces) for the online-estimator reconstructions of §5.5 (eq 58 with a 2 ms step).
+
+Times are used only relative to each other: a log cut at any start time gives the same result.
+Shapes: T control-rate samples, K camera frames, S slow-grid samples, N joints, N + 1 cables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy import signal
+
+from neck_sim.analytic import elongation
+from neck_sim.params import NeckParams
+
+__all__ = ["Measurements", "PreprocessSettings", "CutoffChoice", "FastSignals", "Prepared",
+           "residual_cutoff", "lowpass", "decimation_factor", "decimate", "prepare"]
+
+
+def _as_series(name: str, t, x, width: int | None, *, min_len: int = 2):
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if t.ndim != 1 or t.size < min_len:
+        raise ValueError(f"{name}.t: expected a 1-D time vector with at least {min_len} samples, got shape {t.shape}")
+    if x.ndim != 2 or x.shape[0] != t.size or (width is not None and x.shape[1] != width):
+        w = "W" if width is None else width
+        raise ValueError(f"{name}: expected shape ({t.size}, {w}), got {x.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(x))):
+        raise ValueError(f"{name}: contains NaN or infinity")
+    if np.any(np.diff(t) <= 0):
+        k = int(np.argmax(np.diff(t) <= 0))
+        raise ValueError(f"{name}.t: times must increase strictly (sample {k + 1} at {t[k + 1]!r} s "
+                         f"follows {t[k]!r} s)")
+    return t, x
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """What the prototype measures (the log contract's measured topics), SI units.
+
+    t_motor (T,) s, theta (T, N+1) rad motor-shaft angles (> 0 winds up), force (T, N+1) N
+    commanded; t_camera (K,) s and alpha_camera (K, N) rad, or both None without a camera.
+    """
+
+    t_motor: np.ndarray
+    theta: np.ndarray
+    force: np.ndarray
+    t_camera: np.ndarray | None = None
+    alpha_camera: np.ndarray | None = None
+
+    def __post_init__(self):
+        t, th = _as_series("motors.theta", self.t_motor, self.theta, None, min_len=64)
+        _, f = _as_series("motors.force", t, self.force, th.shape[1])
+        if th.shape[1] < 2:
+            raise ValueError(f"motors.theta: expected N+1 >= 2 motors per sample, got {th.shape[1]}")
+        object.__setattr__(self, "t_motor", t)
+        object.__setattr__(self, "theta", th)
+        object.__setattr__(self, "force", f)
+        if (self.t_camera is None) != (self.alpha_camera is None):
+            raise ValueError("camera: t_camera and alpha_camera must both be given or both be None")
+        if self.t_camera is not None:
+            tc, a = _as_series("camera.alpha", self.t_camera, self.alpha_camera, th.shape[1] - 1, min_len=8)
+            object.__setattr__(self, "t_camera", tc)
+            object.__setattr__(self, "alpha_camera", a)
+
+    @property
+    def n_joints(self) -> int:
+        return self.theta.shape[1] - 1
+
+    @property
+    def has_camera(self) -> bool:
+        return self.t_camera is not None
+
+    @classmethod
+    def from_log(cls, log) -> "Measurements":
+        """The measured topics of a :class:`neck_sim.logs.Log` (never its simulation-truth topics)."""
+        cam = getattr(log, "camera", None)
+        has_cam = cam is not None and getattr(cam, "t", None) is not None
+        return cls(log.motors.t, log.motors.theta, log.motors.force,
+                   cam.t if has_cam else None, cam.alpha if has_cam else None)
+
+
+@dataclass(frozen=True)
+class PreprocessSettings:
+    """Choices of the pre-processing; None cutoffs are chosen by residual analysis."""
+
+    filter_order: int = 4                 # Butterworth order (doubled by the forward-reverse pass)
+    motor_cutoff_hz: float | None = None
+    camera_cutoff_hz: float | None = None
+    trim_s: float = 0.5                   # s dropped at both ends (filter and interpolation edges)
+    common_bandwidth: bool = True         # filter all slow-grid signals with the lower cutoff
+
+    def __post_init__(self):
+        if int(self.filter_order) != self.filter_order or not 1 <= self.filter_order <= 10:
+            raise ValueError(f"filter_order: expected an integer in 1..10, got {self.filter_order!r}")
+        for name in ("motor_cutoff_hz", "camera_cutoff_hz"):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be positive, got {v!r}")
+        if not (np.isfinite(self.trim_s) and self.trim_s >= 0):
+            raise ValueError(f"trim_s: must be >= 0, got {self.trim_s!r}")
+
+
+class CutoffChoice(NamedTuple):
+    """A cutoff (Hz) with how it was chosen: per-channel cutoffs and noise rms (residual analysis)."""
+
+    hz: float
+    method: str                       # "residual analysis (Winter)" or "given"
+    per_channel_hz: tuple = ()
+    noise_rms: tuple = ()             # intercept a of the residual line, signal units
+
+
+def lowpass(x, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (forward and reverse, ``sosfiltfilt``) along ``axis``."""
+    nyq = 0.5 * fs
+    if not 0 < cutoff_hz < nyq:
+        raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=axis)
+
+
+def residual_cutoff(x, fs: float, *, order: int = 4, n_candidates: int = 120,
+                    fit_band: tuple[float, float] = (0.5, 0.95)) -> CutoffChoice:
+    """Winter's residual analysis: the cutoff (Hz) of a zero-phase Butterworth for ``x`` (T, C).
+
+    R(f_c) = rms(x - lowpass(x, f_c)) on candidates from 1 % to 95 % of Nyquist; a line fitted to
+    R over ``fit_band`` (fractions of Nyquist, where only noise is left) gives the noise rms a as
+    its value at f_c = 0; the cutoff is the lowest f_c with R(f_c) <= a (linear interpolation
+    between candidates).  Channels whose residual never reaches a (noise-free data) get the top
+    candidate.  Returns the largest channel cutoff, and each channel's cutoff and a.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2 or x.shape[0] < 32:
+        raise ValueError(f"residual_cutoff: expected (T >= 32, C) samples, got shape {x.shape}")
+    nyq = 0.5 * fs
+    fc = np.linspace(0.01, 0.95, n_candidates) * nyq
+    res = np.empty((n_candidates, x.shape[1]))
+    for i, f in enumerate(fc):
+        res[i] = np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))
+    band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
+    slope, intercept = np.polyfit(fc[band], res[band], 1)
+    chosen = np.empty(x.shape[1])
+    for c in range(x.shape[1]):
+        below = np.nonzero(res[:, c] <= intercept[c])[0]
+        if below.size == 0 or intercept[c] <= 0:
+            chosen[c] = fc[-1]
+            continue
+        i = below[0]
+        if i == 0:
+            chosen[c] = fc[0]
+        else:                               # interpolate the crossing between candidates i-1, i
+            r0, r1 = res[i - 1, c], res[i, c]
+            w = (r0 - intercept[c]) / (r0 - r1) if r0 != r1 else 1.0
+            chosen[c] = fc[i - 1] + w * (fc[i] - fc[i - 1])
+    return CutoffChoice(float(chosen.max()), "residual analysis (Winter)", tuple(chosen.tolist()),
+                        tuple(np.maximum(intercept, 0.0).tolist()))
+
+
+def decimation_factor(fs: float, camera_rate_hz: float) -> int:
+    """Largest integer q with fs / q >= the camera rate (500 Hz, 30 Hz -> 16, i.e. 31.25 Hz)."""
+    if not (fs > 0 and camera_rate_hz > 0):
+        raise ValueError(f"rates must be positive, got {fs}, {camera_rate_hz}")
+    return max(1, int(np.floor(fs / camera_rate_hz + 1e-9)))
+
+
+def _stages(q: int) -> list[int]:
+    """Factors of q, each at most 13 (scipy's advice for IIR decimation), largest first."""
+    stages, rest = [], q
+    while rest > 1:
+        f = next((d for d in range(min(rest, 13), 1, -1) if rest % d == 0), None)
+        if f is None:
+            raise ValueError(f"decimation factor {q} has a prime factor above 13; use a rate with "
+                             f"small factors")
+        stages.append(f)
+        rest //= f
+    return stages
+
+
+def _antialias(q: int) -> signal.dlti:
+    """scipy.signal.decimate's default filter (Chebyshev I, order 8, 0.05 dB, 0.8/q) with DC gain 1."""
+    b, a = signal.cheby1(8, 0.05, 0.8 / q)
+    return signal.dlti(b * (a.sum() / b.sum()), a)
+
+
+def decimate(x, q: int, axis: int = 0) -> np.ndarray:
+    """``scipy.signal.decimate`` by q in stages of at most 13, zero phase, unit DC gain.
+
+    Output sample k is input sample k*q (the zero-phase filter does not shift the signal).
+    """
+    y = np.asarray(x, dtype=float)
+    for f in _stages(q):
+        y = signal.decimate(y, f, ftype=_antialias(f), axis=axis, zero_phase=True)
+    return y
+
+
+class FastSignals(NamedTuple):
+    """Control-rate signals for the online-estimator reconstructions (§5.5), over the whole log."""
+
+    t: np.ndarray          # (T,) s
+    theta: np.ndarray      # (T, N+1) rad, as measured (quantised)
+    theta_dot: np.ndarray  # (T, N+1) rad/s, filtered, central differences
+    force: np.ndarray      # (T, N+1) N, as commanded
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """Synchronised slow-grid signals for the identification models (all arrays (S, ...), SI).
+
+    alpha* and x_c* are None when the log has no camera.  ``cutoffs`` maps "motors", "camera",
+    "common" to a :class:`CutoffChoice`; ``fast`` holds control-rate signals, ``camera`` the raw
+    frames (t (K,), alpha (K, N)) or None.
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    theta_ddot: np.ndarray
+    force: np.ndarray
+    alpha: np.ndarray | None
+    alpha_dot: np.ndarray | None
+    alpha_ddot: np.ndarray | None
+    x_c: np.ndarray | None
+    x_c_dot: np.ndarray | None
+    x_c_ddot: np.ndarray | None
+    motor_rate_hz: float
+    rate_hz: float
+    decimation: int
+    cutoffs: dict = field(default_factory=dict)
+    fast: FastSignals | None = None
+    camera: tuple | None = None
+
+    @property
+    def has_camera(self) -> bool:
+        return self.alpha is not None
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.size)
+
+
+def _uniform_rate(t: np.ndarray, name: str) -> float:
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    bad = np.abs(dt - med) > 0.1 * med
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise ValueError(f"{name}: samples are not evenly spaced (gap of {dt[k]:.6g} s after t = {t[k]:.6g} s, "
+                         f"typical {med:.6g} s); identification needs a uniform control-rate log")
+    return 1.0 / med
+
+
+def _cutoff(given: float | None, x: np.ndarray, fs: float, order: int) -> CutoffChoice:
+    if given is not None:
+        if not given < 0.5 * fs:
+            raise ValueError(f"cutoff: {given} Hz is above the Nyquist frequency {0.5 * fs:.4g} Hz")
+        return CutoffChoice(float(given), "given")
+    return residual_cutoff(x, fs, order=order)
+
+
+def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
+            *, camera_rate_hz: float | None = None) -> Prepared:
+    """Filter, differentiate, decimate and synchronise ``meas`` (see the module docstring).
+
+    ``params`` gives the nominal geometry and drive (for eq 27); ``camera_rate_hz`` (default
+    ``params.sensors.camera_rate_hz``) sets the decimation factor.  Raises ValueError naming the
+    problem for a log that is too short, unevenly sampled, or whose camera does not overlap it.
+    """
+    s = settings or PreprocessSettings()
+    n = params.n_joints
+    if meas.n_joints != n:
+        raise ValueError(f"motors: the log has {meas.n_joints + 1} motors, the parameters describe "
+                         f"{n + 1} cables ({n} joints)")
+    fs = _uniform_rate(meas.t_motor, "motors.t")
+    cam_rate = camera_rate_hz or params.sensors.camera_rate_hz
+    q = decimation_factor(fs, cam_rate)
+    rate = fs / q
+    order = s.filter_order
+
+    motor_cut = _cutoff(s.motor_cutoff_hz, meas.theta, fs, order)
+    dt = 1.0 / fs
+    theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
+    force_f = lowpass(meas.force, fs, motor_cut.hz, order)
+    theta_dot = np.gradient(theta_f, dt, axis=0)
+    theta_ddot = np.gradient(theta_dot, dt, axis=0)
+    fast = FastSignals(meas.t_motor, meas.theta, theta_dot, meas.force)
+
+    t_grid = meas.t_motor[::q]
+    slow = {name: decimate(v, q)[: t_grid.size] for name, v in
+            (("theta", theta_f), ("theta_dot", theta_dot), ("theta_ddot", theta_ddot), ("force", force_f))}
+    cutoffs = {"motors": motor_cut}
+
+    lo, hi = t_grid[0], t_grid[-1]
+    cam = None
+    if meas.has_camera:
+        tc, ac = meas.t_camera, meas.alpha_camera
+        lo, hi = max(lo, tc[0]), min(hi, tc[-1])
+        if hi - lo < 4 * s.trim_s + 64 / rate:
+            raise ValueError(f"camera: its frames ({tc[0]:.3f}..{tc[-1]:.3f} s) overlap the motor samples "
+                             f"({t_grid[0]:.3f}..{t_grid[-1]:.3f} s) for too short a time")
+        cam = (tc, ac)
+    inside = (t_grid >= lo) & (t_grid <= hi)
+    idx = np.nonzero(inside)[0]
+    if idx.size < 64:
+        raise ValueError(f"motors: only {idx.size} samples at {rate:.4g} Hz; identification needs a longer log")
+    alpha = alpha_dot = alpha_ddot = None
+    common = motor_cut.hz
+    if cam is not None:
+        tg = t_grid[idx]
+        a_grid = np.stack([np.interp(tg, cam[0], cam[1][:, j]) for j in range(n)], axis=1)
+        cam_cut = _cutoff(s.camera_cutoff_hz, a_grid, rate, order)
+        cutoffs["camera"] = cam_cut
+        alpha = lowpass(a_grid, rate, cam_cut.hz, order)
+        common = min(common, cam_cut.hz)
+    for k in slow:
+        slow[k] = slow[k][idx]
+    if s.common_bandwidth and common < 0.5 * rate * 0.95:
+        for k in slow:
+            slow[k] = lowpass(slow[k], rate, common, order)
+        if alpha is not None and common < cutoffs["camera"].hz:
+            alpha = lowpass(alpha, rate, common, order)
+    cutoffs["common"] = CutoffChoice(float(common), "min(motors, camera)" if cam is not None else "motors")
+    h = 1.0 / rate
+    x_c = x_c_dot = x_c_ddot = None
+    if alpha is not None:
+        alpha_dot = np.gradient(alpha, h, axis=0)
+        alpha_ddot = np.gradient(alpha_dot, h, axis=0)
+        x_c = elongation(slow["theta"], alpha, params)
+        x_c_dot = np.gradient(x_c, h, axis=0)
+        x_c_ddot = np.gradient(x_c_dot, h, axis=0)
+
+    t = t_grid[idx]
+    keep = (t >= t[0] + s.trim_s) & (t <= t[-1] - s.trim_s)
+    if np.count_nonzero(keep) < 32:
+        raise ValueError(f"log: {t[-1] - t[0]:.2f} s of usable data is too short after trimming "
+                         f"{s.trim_s} s at both ends")
+
+    def cut(v):
+        return None if v is None else v[keep]
+
+    return Prepared(t=t[keep], theta=slow["theta"][keep], theta_dot=slow["theta_dot"][keep],
+                    theta_ddot=slow["theta_ddot"][keep], force=slow["force"][keep],
+                    alpha=cut(alpha), alpha_dot=cut(alpha_dot), alpha_ddot=cut(alpha_ddot),
+                    x_c=cut(x_c), x_c_dot=cut(x_c_dot), x_c_ddot=cut(x_c_ddot),
+                    motor_rate_hz=fs, rate_hz=rate, decimation=q, cutoffs=cutoffs, fast=fast, camera=cam)

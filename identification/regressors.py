@@ -1,0 +1,182 @@
+"""Observation matrices of the paper's identification models (eqs 43-47, 54-57), errata fixed.
+
+Every model is a linear system W v + rho = Y (eq 48) stacked over the slow-grid samples of a
+:class:`~identification.preprocessing.Prepared`.  Signs follow the convention of
+:mod:`neck_sim.analytic.cables` (x_c > 0 stretched, Z^T alpha_dot = (r_d/R) theta_dot - x_c_dot),
+so the corrected full model (eq 32) reads
+
+    M alpha_ddot + c + g = Z (f - f_friction - I_a (R/r_d)^2 x_c_ddot),
+
+the x_c term being the second derivative (erratum 4) with its sign flipped (erratum 6).
+
+Models
+------
+* ``friction_model`` -- friction alone, the paper's "model without cable elasticity" (eqs 46-47,
+  Table 1 column 2): eq (38) with x_c = 0, i.e. rows Z diag(a) f_s = Z f - M alpha_ddot - c - g,
+  a = (2/pi) arctan(c_s theta_dot).  As printed, eqs (46)-(47) would regress f - (R/r_d) I_a
+  theta_ddot (= tension + friction) on diag(a) and fit the friction to the cable tension; the
+  text ("model without cable elasticity", values within 2 % of column 1) describes eq (38).
+* ``elastic_model`` -- eqs (44)-(45), v = (k, c_a, f_s): per sample N+1 tension rows
+  diag(x_c) k + diag(x_c_dot) c_a + diag(a) f_s = f - (R/r_d) I_a theta_ddot (eq 42), then N
+  torque rows weighted by W (default 100): W Z diag(a) f_s = W (Z (f - I_a (R/r_d)^2 x_c_ddot)
+  - M alpha_ddot - c - g).
+* ``variable_stiffness_model`` -- eqs (54)-(57) with f_s fixed, v = (k, lambda, c_a): rows
+  diag(x_c) k + diag(x_c t_c) lambda + diag(x_c_dot) c_a = t_c, t_c from eq (55).
+
+Tension rows of a slack cable are left out (``taut`` masks): eq (39) describes a taut cable only.
+A sample counts as slack for cable i when its tension from eq (41) is below a threshold or its
+measured elongation is not positive; the mask is widened by a margin in time because filtering
+smears the edges of a slack interval (``taut_samples``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic import bias_forces, gravity_spring_torque, mass_matrix, motor_friction, transmission_matrix
+from neck_sim.params import NeckParams
+
+from identification.preprocessing import Prepared
+
+__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "tension_from_forces", "taut_samples",
+           "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
+
+
+class Regression(NamedTuple):
+    """Observation matrix W (r, p), observations Y (r,), parameter names and units (p,)."""
+
+    W: np.ndarray
+    Y: np.ndarray
+    names: tuple
+    units: tuple
+
+
+class Dynamics(NamedTuple):
+    """Z (S, N, N+1) m, M (S, N, N) kg m^2 with motors, c (S, N) N m with motors, g (S, N) N m."""
+
+    Z: np.ndarray
+    M: np.ndarray
+    c: np.ndarray
+    g: np.ndarray
+
+
+def parameter_names(symbol: str, n_cables: int) -> tuple:
+    """("k(1)", ..., "k(N+1)") -- the paper's labels."""
+    return tuple(f"{symbol}({i + 1})" for i in range(n_cables))
+
+
+_UNITS = {"k": "N/m", "c_a": "N s/m", "f_s": "N", "lambda": "1/m"}
+
+
+def _names_units(symbols, n_cables):
+    names = sum((parameter_names(s, n_cables) for s in symbols), ())
+    units = sum(((_UNITS[s],) * n_cables for s in symbols), ())
+    return names, units
+
+
+def _need_camera(prep: Prepared, model: str) -> None:
+    if not prep.has_camera:
+        raise ValueError(f"{model}: needs the joint angles of the camera topic (/neck/camera) for eq (27)'s "
+                         f"elongations and the joint accelerations; this log has no camera frames")
+
+
+def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
+    """Z, M, c, g (with the geared motors, eqs 24 and 26 corrected) at the camera's joint angles."""
+    _need_camera(prep, "joint dynamics")
+    a, ad = prep.alpha, prep.alpha_dot
+    return Dynamics(transmission_matrix(a, params), mass_matrix(a, params, motors=True),
+                    bias_forces(a, ad, params, motors=True), gravity_spring_torque(a, params))
+
+
+def friction_basis(theta_dot, params: NeckParams) -> np.ndarray:
+    """a = (2/pi) arctan(c_s theta_dot), the eq (37) friction per unit f_s, (..., N+1)."""
+    th = np.asarray(theta_dot, dtype=float)
+    return motor_friction(th, params, f_s=np.ones(th.shape[-1]))
+
+
+def tension_from_forces(prep: Prepared, params: NeckParams, f_s) -> np.ndarray:
+    """Cable tensions of eq (41)/(55): f - a f_s - (R/r_d) I_a theta_ddot, (S, N+1) N."""
+    act = params.actuation
+    return (prep.force - friction_basis(prep.theta_dot, params) * np.asarray(f_s, dtype=float)
+            - (act.R / act.r_d) * act.I_a * prep.theta_ddot)
+
+
+def taut_samples(prep: Prepared, params: NeckParams, f_s, *, threshold: float = 2.0,
+                 margin_s: float = 0.1) -> np.ndarray:
+    """Mask (S, N+1), True where cable i is taut at sample s (see the module docstring).
+
+    ``threshold`` N on the eq (41) tension with friction ``f_s``; ``margin_s`` s added on both
+    sides of every slack interval.  Needs the camera for the elongation test.
+    """
+    _need_camera(prep, "slack detection")
+    slack = (tension_from_forces(prep, params, f_s) < threshold) | (prep.x_c <= 0)
+    pad = int(np.ceil(margin_s * prep.rate_hz))
+    if pad > 0 and slack.any():
+        kernel = np.ones(2 * pad + 1)
+        widened = np.stack([np.convolve(slack[:, i].astype(float), kernel, mode="same") > 0
+                            for i in range(slack.shape[1])], axis=1)
+        slack = widened
+    return ~slack
+
+
+def _diag_rows(cols: list[np.ndarray], taut: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-cable rows: for cable i, row [c1[:, i] e_i, c2[:, i] e_i, ...]; returns (W, cable index)."""
+    S, C = cols[0].shape
+    W = np.zeros((S, C, len(cols) * C))
+    idx = np.arange(C)
+    for b, col in enumerate(cols):
+        W[:, idx, b * C + idx] = col
+    keep = np.ones((S, C), bool) if taut is None else np.asarray(taut, bool)
+    if keep.shape != (S, C):
+        raise ValueError(f"taut: expected shape ({S}, {C}), got {keep.shape}")
+    return W[keep], keep
+
+
+def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool):
+    """(Z diag(a) (S*N, N+1), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
+    a = friction_basis(prep.theta_dot, params)
+    Za = dyn.Z * a[:, None, :]
+    f = prep.force
+    if elastic:
+        f = f - params.actuation.reflected_inertia * prep.x_c_ddot
+    y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) - dyn.c - dyn.g)
+    n = dyn.Z.shape[1]
+    return Za.reshape(-1, n + 1), y.reshape(-1)
+
+
+def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | None = None) -> Regression:
+    """Friction alone from the joint torques, rigid cables (eqs 46-47 as meant, eq 38 with x_c = 0)."""
+    _need_camera(prep, "friction model (eqs 46-47)")
+    dyn = dyn or joint_dynamics(prep, params)
+    W, Y = _torque_rows(prep, params, dyn, elastic=False)
+    names, units = _names_units(("f_s",), params.n_cables)
+    return Regression(W, Y, names, units)
+
+
+def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, taut=None,
+                  dyn: Dynamics | None = None) -> Regression:
+    """Friction, linear stiffness and damping (eqs 44-45 corrected), v = (k, c_a, f_s)."""
+    _need_camera(prep, "elastic model (eqs 44-45)")
+    if not (np.isfinite(weight) and weight > 0):
+        raise ValueError(f"weight: must be positive, got {weight!r}")
+    dyn = dyn or joint_dynamics(prep, params)
+    act = params.actuation
+    C = params.n_cables
+    a = friction_basis(prep.theta_dot, params)
+    Wt, keep = _diag_rows([prep.x_c, prep.x_c_dot, a], taut)
+    Yt = (prep.force - (act.R / act.r_d) * act.I_a * prep.theta_ddot)[keep]
+    Za, yq = _torque_rows(prep, params, dyn, elastic=True)
+    Wq = np.concatenate([np.zeros((Za.shape[0], 2 * C)), weight * Za], axis=1)
+    names, units = _names_units(("k", "c_a", "f_s"), C)
+    return Regression(np.concatenate([Wt, Wq]), np.concatenate([Yt, weight * yq]), names, units)
+
+
+def variable_stiffness_model(prep: Prepared, params: NeckParams, f_s, *, taut=None) -> Regression:
+    """Tension-dependent stiffness with friction fixed (eqs 54-57), v = (k, lambda, c_a)."""
+    _need_camera(prep, "variable-stiffness model (eqs 54-57)")
+    t = tension_from_forces(prep, params, f_s)
+    W, keep = _diag_rows([prep.x_c, prep.x_c * t, prep.x_c_dot], taut)
+    names, units = _names_units(("k", "lambda", "c_a"), params.n_cables)
+    return Regression(W, t[keep], names, units)
