@@ -1,0 +1,572 @@
+"""MJCF builder: the N-X neck as a MuJoCo model, generated from :class:`~neck_sim.params.NeckParams`.
+
+Frame: the model lives in the analytic frame of :mod:`neck_sim.analytic.geometry` -- the neck
+moves in the x-y plane, y up, gravity along -y, every hinge axis along +z (so a positive hinge
+angle is counter-clockwise, like alpha).  Nothing is rotated: a point (x, y) of the analytic
+model is the MuJoCo point (x, y, z_row).  At ``qpos = 0`` the neck is straight (alpha = 0).
+
+Bodies of X-joint i (``j{i}_...``): diagonal ``ad`` hinged at A_i on the base bar (hinge
+``j{i}_A``), diagonal ``bc`` hinged at B_i (``j{i}_B``), top bar ``top`` hinged at D_i on ``ad``
+(``j{i}_D``); the loop is closed by an equality ``connect`` between site ``j{i}_C_top`` (on the
+top bar) and ``j{i}_C_bc`` (on ``bc``).  The top bar's frame is the analytic frame i+1 (origin at
+the middle of CD, x along C->D) and is the base bar of joint i+1; the base bar of joint 1 is the
+world.  Hence alpha_i = q(j{i}_A) + q(j{i}_D).
+
+Cables are spatial tendons ``c1``..``c{N+1}`` routed as in ``shared/design/geometry-and-errata.md``
+(one z-row per cable, pulleys of radius r as wrap cylinders on the hinge axes, sidesites at 2r
+in the direction of the middle of each arc, a site between any two wraps).  Right cable j: case
+(d) on joints 1..j-1 (crossing the diagonal B->C and the top bar C->D through their midpoints),
+case (b) on joint j, attached at D_j.  Left cable: case (c) on joints 1..N-1 (external tangent
+of the left side, kept by a light helper body ``j{i}_helper`` hinged at A_i whose angle a
+fixed-tendon equality holds at alpha_i/2; the extra full turn on C_i is split in two arcs by
+site ``c{N+1}_turn{i}``), case (a) on joint N, attached at C_N.
+
+Each motor is a slide joint ``motor{j}`` in cable-length units (s = (r_d/R) theta, armature
+I_a (R/r_d)^2) that carries the cable's first site, on the cable's incoming straight line: the
+tendon length is then ``l_c(alpha) + s + const``, so ``ten_length - rest = x_c``, the elongation
+of :mod:`neck_sim.analytic.cables`, and a force -t on the tendon pulls the bars *and* the motor.
+
+Actuators (``actuator`` order): ``drive{j}`` on ``motor{j}`` (ctrl = commanded force f, N, gain
+1, affine bias = minus motor friction) for j = 1..N+1, then ``tension{j}`` on tendon ``c{j}``
+(gain 0, affine bias = minus the cable tension).  In the static XML the tension bias is a linear
+bilateral spring (k_j, c_a_j) about the rest length and the friction bias is zero, so the file
+runs on its own in ``python -m mujoco.viewer``; :mod:`neck_sim.plant` rewrites both biases at
+every physics step (eq 54 tension-only cables, eq 37 friction and the plant's effects).
+
+Side springs are spatial tendons ``j{i}_spring_left`` (A_i C_i) and ``j{i}_spring_right``
+(B_i D_i) with stiffness and springlength.  Rigid cables (``rigid_cables=True``): each cable
+tendon is held at its rest length by an equality constraint ``c{j}_rigid`` instead.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic.geometry import _joint_local, check_alpha, forward_kinematics
+from neck_sim.params import NeckParams, atomic_write_bytes
+
+__all__ = ["DEFAULT_TIMESTEP", "Layout", "build_xml", "build_model", "write_xml", "ModelIndex",
+           "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path"]
+
+DEFAULT_TIMESTEP = 5e-4
+"""Physics timestep (s): the largest that keeps the issue-3 dynamics check true (see plant)."""
+
+_MOTOR_DISTANCE = 0.25      # m, motor site to the first pulley's tangent point
+_ROW_PITCH = 0.004          # m, z distance between cable rows
+_SIDESITE_RADIUS = 2.0      # x r: sidesites at 2r from the pulley axis
+_TURN_RADIUS = 2.5          # x r: site splitting the full turn on C_i (shadow 2 acos(1/2.5))
+_HELPER_MASS = 1e-4         # kg, helper body (point mass on the hinge axis)
+_HELPER_INERTIA = 1e-7      # kg m^2 about the hinge; keeps its cable-driven mode stable
+_MOTOR_BODY_MASS = 1e-3     # kg; the reflected inertia is the slide's armature
+_PULLEY_HALF_HEIGHT = 0.0015
+
+
+class Layout(NamedTuple):
+    """Where everything is at the straight pose, in world coordinates (x, y); z rows per cable."""
+
+    corners: np.ndarray       # (N, 4, 2) A, B, C, D of every joint
+    mid_top: np.ndarray       # (N, 2) middle of C_i D_i (origin of the top-bar body)
+    row_z: np.ndarray         # (N+1,) z of each cable row
+    motor_site: np.ndarray    # (N+1, 2) first site of each cable (on the motor body)
+    motor_axis: np.ndarray    # (N+1, 2) slide axis: the direction that winds the cable up
+
+
+def _layout(params: NeckParams) -> Layout:
+    g = params.geometry
+    n = g.n_joints
+    kin = forward_kinematics(np.zeros(n), params)
+    corners = kin.corners
+    mid_top = 0.5 * (corners[:, 2] + corners[:, 3])
+    row_z = np.array([_ROW_PITCH * (j + 1) for j in range(n)] + [-_ROW_PITCH])
+    A1, B1 = corners[0, 0], corners[0, 1]
+    # Right cables arrive under the base bar travelling +x and wrap B_1 counter-clockwise; the
+    # left cable arrives travelling -x and wraps A_1 clockwise: both lines are y = -r.
+    right = np.array([B1[0] - _MOTOR_DISTANCE, -g.r])
+    left = np.array([A1[0] + _MOTOR_DISTANCE, -g.r])
+    motor_site = np.array([right] * n + [left])
+    motor_axis = np.array([[-1.0, 0.0]] * n + [[1.0, 0.0]])
+    return Layout(corners, mid_top, row_z, motor_site, motor_axis)
+
+
+# --------------------------------------------------------------------------------------------
+# Cable paths as (kind, ...) items; "site" items are points, "wrap" items are pulleys.
+
+class _Site(NamedTuple):
+    name: str
+    body: str
+    point: np.ndarray          # world (x, y) at the straight pose
+
+
+class _Wrap(NamedTuple):
+    pulley: str                # geom name
+    body: str
+    centre: np.ndarray         # world (x, y) at the straight pose
+    sense: int                 # +1 counter-clockwise, -1 clockwise
+    sidesite: str
+
+
+def _base_body(i: int) -> str:
+    """Body carrying the base bar of joint i (1-based)."""
+    return "world" if i == 1 else f"j{i - 1}_top"
+
+
+def _cable_paths(params: NeckParams, lay: Layout) -> list[list]:
+    """Path items of each cable (index 0..N), alternating sites and wraps, sites at both ends."""
+    n = params.n_joints
+    c = lay.corners
+    paths = []
+    for j in range(1, n + 1):                      # right cables
+        tag = f"c{j}"
+        items: list = [_Site(f"{tag}_motor", f"motor{j}", lay.motor_site[j - 1])]
+        for i in range(1, j):                      # case (d)
+            A, B, C, D = c[i - 1]
+            items += [_Wrap(f"{tag}_pulley_B{i}", _base_body(i), B, +1, f"{tag}_side_B{i}"),
+                      _Site(f"{tag}_mid_bc{i}", f"j{i}_bc", 0.5 * (B + C)),
+                      _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}"),
+                      _Site(f"{tag}_mid_top{i}", f"j{i}_top", 0.5 * (C + D))]
+        A, B, C, D = c[j - 1]                      # case (b)
+        items += [_Wrap(f"{tag}_pulley_B{j}", _base_body(j), B, +1, f"{tag}_side_B{j}"),
+                  _Site(f"{tag}_end", f"j{j}_top", D)]
+        paths.append(items)
+    tag = f"c{n + 1}"                              # left cable
+    items = [_Site(f"{tag}_motor", f"motor{n + 1}", lay.motor_site[n]),
+             _Wrap(f"{tag}_pulley_A1", "world", c[0, 0], -1, f"{tag}_side_A1")]
+    r = params.geometry.r
+    for i in range(1, n):                          # case (c)
+        A, B, C, D = c[i - 1]
+        helper = A + np.array([-r, 0.5 * (params.geometry.L - params.geometry.b)])
+        turn = C + np.array([_TURN_RADIUS * r, 0.0])
+        items += [_Site(f"{tag}_helper{i}", f"j{i}_helper", helper),
+                  _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}a"),
+                  _Site(f"{tag}_turn{i}", f"j{i}_top", turn),
+                  _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}b")]
+    items.append(_Site(f"{tag}_end", f"j{n}_top", c[n - 1, 2]))   # case (a): attached at C_N
+    paths.append(items)
+    return paths
+
+
+def _angle(v) -> float:
+    return math.atan2(v[1], v[0])
+
+
+def _arc(centre, r: float, p, q, sense: int) -> tuple[float, float]:
+    """Contact angle where the cable from p meets the pulley, and the wrap angle to leave for q.
+
+    A cable wrapping with ``sense`` (+1 ccw) touches the pulley at angle phi with travel
+    direction phi + sense*90 deg; the tangent from an outside point at distance d touches at
+    beta -/+ acos(r/d).  Returns (phi_in, arc) with arc in [0, 2 pi).
+    """
+    dp, dq = np.asarray(p) - centre, np.asarray(q) - centre
+    phi_in = _angle(dp) + sense * math.acos(r / math.hypot(*dp))
+    phi_out = _angle(dq) - sense * math.acos(r / math.hypot(*dq))
+    return phi_in, (sense * (phi_out - phi_in)) % (2 * math.pi)
+
+
+def wrap_arcs(params: NeckParams, alpha=None) -> dict[str, float]:
+    """Wrap angle (rad) of every pulley wrap of every cable at pose ``alpha`` (default straight).
+
+    Computed from the closed-form geometry with the builder's own routing; the routing is valid
+    while every arc stays in (0, pi) (the sidesites pick the side from the straight pose).
+    Keys are the sidesite names.
+    """
+    n = params.n_joints
+    a = np.zeros(n) if alpha is None else check_alpha(alpha, n)
+    lay = _layout(params)
+    world = _world_transform(params, a, lay)
+    out = {}
+    r = params.geometry.r
+    for path in _cable_paths(params, lay):
+        for k, item in enumerate(path):
+            if isinstance(item, _Wrap):
+                p = world(path[k - 1].body, path[k - 1].point)
+                q = world(path[k + 1].body, path[k + 1].point)
+                _, arc = _arc(world(item.body, item.centre), r, p, q, item.sense)
+                out[item.sidesite] = arc
+    return out
+
+
+def _world_transform(params: NeckParams, alpha: np.ndarray, lay: Layout):
+    """Map (body, straight-pose world point) to the world point at pose alpha (bars only)."""
+    g = params.geometry
+    n = g.n_joints
+    kin = forward_kinematics(alpha, params)
+    jl = _joint_local(alpha, g.b, g.L)
+    j0 = _joint_local(np.zeros(n), g.b, g.L)
+    A0 = np.array([-g.b / 2, 0.0])
+    B0 = np.array([g.b / 2, 0.0])
+    frames = {"world": (np.zeros(2), 0.0, np.zeros(2))}   # body -> (origin now, angle, origin straight)
+    base_angle = 0.0
+    for i in range(1, n + 1):
+        A_now, B_now, C_now, D_now = kin.corners[i - 1]
+        A_st, B_st = lay.corners[i - 1, 0], lay.corners[i - 1, 1]
+        C_loc, D_loc = jl.C[i - 1], jl.D[i - 1]
+        C0, D0 = j0.C[i - 1], j0.D[i - 1]
+        ang_ad = _angle(D_loc - A0) - _angle(D0 - A0)
+        ang_bc = _angle(C_loc - B0) - _angle(C0 - B0)
+        frames[f"j{i}_ad"] = (A_now, base_angle + ang_ad, A_st)
+        frames[f"j{i}_bc"] = (B_now, base_angle + ang_bc, B_st)
+        frames[f"j{i}_helper"] = (A_now, base_angle + alpha[i - 1] / 2, A_st)
+        frames[f"j{i}_top"] = (0.5 * (C_now + D_now), base_angle + alpha[i - 1], lay.mid_top[i - 1])
+        base_angle += alpha[i - 1]
+
+    def world(body: str, point) -> np.ndarray:
+        if body.startswith("motor"):
+            return np.asarray(point)
+        origin_now, ang, origin_st = frames[body]
+        c, s = math.cos(ang), math.sin(ang)
+        v = np.asarray(point) - origin_st
+        return origin_now + np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+    return world
+
+
+# --------------------------------------------------------------------------------------------
+# XML generation
+
+def _fmt(x: float) -> str:
+    x = float(x)
+    if x == 0.0:
+        return "0"
+    return repr(x)
+
+
+def _vec(*xs) -> str:
+    return " ".join(_fmt(x) for x in xs)
+
+
+def _rod_inertial(parent: ET.Element, p0, p1, mass: float, length: float) -> None:
+    """Slender rod between p0 and p1 (body-local 2-D points): I = m l^2 / 12 about its centre."""
+    centre = 0.5 * (np.asarray(p0) + np.asarray(p1))
+    d = np.asarray(p1) - np.asarray(p0)
+    half = 0.5 * _angle(d)
+    inertia = mass * length ** 2 / 12.0
+    # Principal axes: x along the rod (tiny), y and z across it.
+    ET.SubElement(parent, "inertial", pos=_vec(centre[0], centre[1], 0.0),
+                  quat=_vec(math.cos(half), 0.0, 0.0, math.sin(half)), mass=_fmt(mass),
+                  diaginertia=_vec(inertia * 1e-3, inertia, inertia))
+
+
+def _capsule(parent: ET.Element, name: str, p0, p1, rgba: str, radius: float = 0.002) -> None:
+    ET.SubElement(parent, "geom", name=name, type="capsule", size=_fmt(radius),
+                  fromto=_vec(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0), rgba=rgba, group="1")
+
+
+def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_cables: bool = False,
+              rest_lengths=None) -> str:
+    """The MJCF text of the neck described by ``params`` (see the module docstring).
+
+    ``rest_lengths`` (N+1,) m: tendon lengths of the cables at the straight pose with the motors
+    at zero, used for the static linear stand-in of the cables; computed by compiling once when
+    omitted.
+    """
+    if not (math.isfinite(timestep) and timestep > 0):
+        raise ValueError(f"timestep: must be finite and positive, got {timestep!r}")
+    if rest_lengths is None:
+        import mujoco
+        model = mujoco.MjModel.from_xml_string(
+            build_xml(params, timestep=timestep, rigid_cables=rigid_cables, rest_lengths=np.zeros(params.n_cables)))
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_tendon(model, data)
+        rest_lengths = data.ten_length[:params.n_cables].copy()
+    rest_lengths = np.asarray(rest_lengths, dtype=float)
+    g, act, inert = params.geometry, params.actuation, params.inertia
+    n = g.n_joints
+    lay = _layout(params)
+    c = lay.corners
+    paths = _cable_paths(params, lay)
+    r = g.r
+
+    root = ET.Element("mujoco", model=f"neck{n}x")
+    ET.SubElement(root, "compiler", angle="radian", autolimits="true")
+    opt = ET.SubElement(root, "option", timestep=_fmt(timestep), integrator="implicitfast",
+                        gravity=_vec(0.0, -inert.gravity, 0.0), solver="Newton", iterations="50",
+                        tolerance="1e-10")
+    ET.SubElement(opt, "flag", contact="disable")
+    vis = ET.SubElement(root, "visual")
+    ET.SubElement(vis, "global", offwidth="1280", offheight="720", azimuth="90", elevation="0")
+    ET.SubElement(vis, "scale", framelength="0.02", framewidth="0.002", jointlength="0.01",
+                  jointwidth="0.002")
+    ET.SubElement(root, "statistic", center=_vec(0.0, 0.12, 0.0), extent="0.35")
+    default = ET.SubElement(root, "default")
+    ET.SubElement(default, "geom", contype="0", conaffinity="0", density="0")
+    ET.SubElement(default, "joint", type="hinge", axis="0 0 1", limited="false")
+    ET.SubElement(default, "site", size="0.0006", group="3", rgba="0.9 0.9 0.2 1")
+    ET.SubElement(default, "tendon", limited="false")
+
+    world = ET.SubElement(root, "worldbody")
+    ET.SubElement(world, "light", pos="0 0.15 1", dir="0 0 -1", directional="true")
+    ET.SubElement(world, "camera", name="front", pos=_vec(0.0, 0.12, 0.6), xyaxes="1 0 0 0 1 0")
+    _capsule(world, "base_bar", c[0, 0], c[0, 1], "0.3 0.3 0.3 1")
+
+    bodies: dict[str, ET.Element] = {"world": world}
+    origins: dict[str, np.ndarray] = {"world": np.zeros(2)}   # straight-pose world origin of each body
+
+    def local(body: str, point) -> np.ndarray:
+        return np.asarray(point) - origins[body]
+
+    def add_body(name: str, parent: str, origin) -> ET.Element:
+        el = ET.SubElement(bodies[parent], "body", name=name,
+                           pos=_vec(*(np.asarray(origin) - origins[parent]), 0.0))
+        bodies[name] = el
+        origins[name] = np.asarray(origin, dtype=float)
+        return el
+
+    for i in range(1, n + 1):
+        A, B, C, D = c[i - 1]
+        base = _base_body(i)
+        ad = add_body(f"j{i}_ad", base, A)
+        ET.SubElement(ad, "joint", name=f"j{i}_A")
+        _rod_inertial(ad, local(f"j{i}_ad", A), local(f"j{i}_ad", D), inert.diagonal_mass, g.L)
+        _capsule(ad, f"j{i}_ad_geom", local(f"j{i}_ad", A), local(f"j{i}_ad", D), "0.2 0.4 0.8 1")
+        top = add_body(f"j{i}_top", f"j{i}_ad", lay.mid_top[i - 1])
+        ET.SubElement(top, "joint", name=f"j{i}_D", pos=_vec(*local(f"j{i}_top", D), 0.0))
+        top_mass = inert.bar_mass + (inert.payload_mass if i == n else 0.0)
+        # The payload is a point mass at the head bar's centre: same centre, same rotary inertia.
+        ET.SubElement(top, "inertial", pos="0 0 0", mass=_fmt(top_mass),
+                      diaginertia=_vec(inert.bar_mass * g.b ** 2 / 12e3, inert.bar_mass * g.b ** 2 / 12,
+                                       inert.bar_mass * g.b ** 2 / 12))
+        _capsule(top, f"j{i}_top_geom", local(f"j{i}_top", C), local(f"j{i}_top", D), "0.3 0.3 0.3 1")
+        ET.SubElement(top, "site", name=f"j{i}_C_top", pos=_vec(*local(f"j{i}_top", C), 0.0))
+        ET.SubElement(top, "site", name=f"j{i}_D_top", pos=_vec(*local(f"j{i}_top", D), 0.0))
+        bc = add_body(f"j{i}_bc", base, B)
+        ET.SubElement(bc, "joint", name=f"j{i}_B")
+        _rod_inertial(bc, local(f"j{i}_bc", B), local(f"j{i}_bc", C), inert.diagonal_mass, g.L)
+        _capsule(bc, f"j{i}_bc_geom", local(f"j{i}_bc", B), local(f"j{i}_bc", C), "0.8 0.4 0.2 1")
+        ET.SubElement(bc, "site", name=f"j{i}_C_bc", pos=_vec(*local(f"j{i}_bc", C), 0.0))
+        ET.SubElement(bodies[base], "site", name=f"j{i}_A_base", pos=_vec(*local(base, A), 0.0))
+        ET.SubElement(bodies[base], "site", name=f"j{i}_B_base", pos=_vec(*local(base, B), 0.0))
+        if i < n:
+            helper = add_body(f"j{i}_helper", base, A)
+            ET.SubElement(helper, "joint", name=f"j{i}_helper")
+            ET.SubElement(helper, "inertial", pos="0 0 0", mass=_fmt(_HELPER_MASS),
+                          diaginertia=_vec(_HELPER_INERTIA, _HELPER_INERTIA, _HELPER_INERTIA))
+
+    for j in range(n + 1):
+        name = f"motor{j + 1}"
+        mb = add_body(name, "world", lay.motor_site[j])
+        ax = lay.motor_axis[j]
+        ET.SubElement(mb, "joint", name=name, type="slide", axis=_vec(ax[0], ax[1], 0.0),
+                      armature=_fmt(act.reflected_inertia))
+        ET.SubElement(mb, "inertial", pos="0 0 0", mass=_fmt(_MOTOR_BODY_MASS),
+                      diaginertia="1e-9 1e-9 1e-9")
+        ET.SubElement(mb, "geom", name=f"{name}_geom", type="box", size="0.006 0.004 0.0015",
+                      pos=_vec(*(-0.006 * ax), lay.row_z[j]), rgba="0.1 0.1 0.1 1", group="1")
+
+    # Cable sites, pulleys and sidesites.
+    colours = ["0.1 0.3 0.9 1", "0.9 0.8 0.1 1", "0.9 0.1 0.1 1", "0.6 0.2 0.8 1", "0.2 0.7 0.7 1"]
+    made_pulleys = set()
+    for j, path in enumerate(paths):
+        z = lay.row_z[j]
+        for k, item in enumerate(path):
+            if isinstance(item, _Site):
+                ET.SubElement(bodies[item.body], "site", name=item.name, pos=_vec(*local(item.body, item.point), z))
+                continue
+            if item.pulley not in made_pulleys:
+                made_pulleys.add(item.pulley)
+                ctr = local(item.body, item.centre)
+                ET.SubElement(bodies[item.body], "geom", name=item.pulley, type="cylinder",
+                              size=_vec(r, _PULLEY_HALF_HEIGHT), pos=_vec(ctr[0], ctr[1], z),
+                              rgba="0.7 0.7 0.7 0.6", group="2")
+            phi_in, arc = _arc(item.centre, r, path[k - 1].point, path[k + 1].point, item.sense)
+            mid = phi_in + item.sense * arc / 2
+            side = item.centre + _SIDESITE_RADIUS * r * np.array([math.cos(mid), math.sin(mid)])
+            ET.SubElement(bodies[item.body], "site", name=item.sidesite, pos=_vec(*local(item.body, side), z))
+
+    tendon = ET.SubElement(root, "tendon")
+    for j, path in enumerate(paths):
+        sp = ET.SubElement(tendon, "spatial", name=f"c{j + 1}", width="0.0005",
+                           rgba=colours[min(j, 3) if j < n else 3] if n <= 3 else colours[j % len(colours)])
+        for item in path:
+            if isinstance(item, _Site):
+                ET.SubElement(sp, "site", site=item.name)
+            else:
+                ET.SubElement(sp, "geom", geom=item.pulley, sidesite=item.sidesite)
+    k_spring = params.springs.stiffness
+    for i in range(1, n + 1):
+        base = _base_body(i)
+        for side, (s0, s1) in (("left", (f"j{i}_A_base", f"j{i}_C_top")), ("right", (f"j{i}_B_base", f"j{i}_D_top"))):
+            sp = ET.SubElement(tendon, "spatial", name=f"j{i}_spring_{side}", stiffness=_fmt(k_spring[i - 1]),
+                               springlength=_fmt(params.springs.rest_length), width="0.001",
+                               rgba="0.5 0.8 0.5 1")
+            ET.SubElement(sp, "site", site=s0)
+            ET.SubElement(sp, "site", site=s1)
+    for i in range(1, n):
+        fx = ET.SubElement(tendon, "fixed", name=f"j{i}_helper_lock")
+        ET.SubElement(fx, "joint", joint=f"j{i}_helper", coef="1")
+        ET.SubElement(fx, "joint", joint=f"j{i}_A", coef="-0.5")
+        ET.SubElement(fx, "joint", joint=f"j{i}_D", coef="-0.5")
+
+    # Loop closure: solref = 2 timestep (the refsafe minimum), solimp near (0.99, 0.999); see
+    # geometry-and-errata.md: the default solref gives cm-level gaps on this light linkage.
+    solref = _vec(2 * timestep, 1.0)
+    solimp = "0.99 0.999 0.001 0.5 2"
+    eq = ET.SubElement(root, "equality")
+    for i in range(1, n + 1):
+        ET.SubElement(eq, "connect", name=f"j{i}_loop", site1=f"j{i}_C_top", site2=f"j{i}_C_bc",
+                      solref=solref, solimp=solimp)
+    for i in range(1, n):
+        ET.SubElement(eq, "tendon", name=f"j{i}_helper_eq", tendon1=f"j{i}_helper_lock",
+                      solref=solref, solimp=solimp)
+    if rigid_cables:
+        for j in range(n + 1):
+            ET.SubElement(eq, "tendon", name=f"c{j + 1}_rigid", tendon1=f"c{j + 1}",
+                          solref=solref, solimp=solimp)
+
+    actuator = ET.SubElement(root, "actuator")
+    for j in range(n + 1):
+        ET.SubElement(actuator, "general", name=f"drive{j + 1}", joint=f"motor{j + 1}", gaintype="fixed",
+                      gainprm="1", biastype="affine", biasprm="0 0 0", ctrlrange=_vec(0.0, act.f_max))
+    cab = params.cables
+    for j in range(n + 1):
+        k, ca = (0.0, 0.0) if rigid_cables else (cab.k[j], cab.c_a[j])
+        ET.SubElement(actuator, "general", name=f"tension{j + 1}", tendon=f"c{j + 1}", gaintype="fixed",
+                      gainprm="0", biastype="affine", biasprm=_vec(k * rest_lengths[j], -k, -ca),
+                      ctrllimited="false")
+    custom = ET.SubElement(root, "custom")
+    ET.SubElement(custom, "text", name="generator",
+                  data="neck_sim.mjcf.build_xml; cable tensions and motor friction are rewritten by "
+                       "neck_sim.plant at every step (static file: linear bilateral cables, no friction)")
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
+
+
+def build_model(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_cables: bool = False):
+    """Compiled :class:`mujoco.MjModel` of :func:`build_xml` (returns (model, xml))."""
+    import mujoco
+    xml = build_xml(params, timestep=timestep, rigid_cables=rigid_cables)
+    return mujoco.MjModel.from_xml_string(xml), xml
+
+
+def committed_xml_path() -> str:
+    """Path of the committed ``mjcf/neck3x.xml``."""
+    return os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "mjcf", "neck3x.xml")
+
+
+def write_xml(params: NeckParams, path: str | os.PathLike, **kwargs) -> str:
+    """Write :func:`build_xml` atomically to ``path``; returns the text."""
+    xml = build_xml(params, **kwargs)
+    atomic_write_bytes(path, xml.encode())
+    return xml
+
+
+# --------------------------------------------------------------------------------------------
+# Reading a compiled model
+
+class ModelIndex(NamedTuple):
+    """Addresses in a compiled neck model (0-based arrays over joints i or cables j)."""
+
+    n_joints: int
+    qpos_A: np.ndarray        # (N,) qpos address of hinge j{i}_A
+    qpos_B: np.ndarray
+    qpos_D: np.ndarray
+    qpos_helper: np.ndarray   # (N-1,)
+    qpos_motor: np.ndarray    # (N+1,)
+    dof_A: np.ndarray
+    dof_B: np.ndarray
+    dof_D: np.ndarray
+    dof_helper: np.ndarray
+    dof_motor: np.ndarray
+    cable_tendon: np.ndarray  # (N+1,) tendon ids of c1..c{N+1}
+    drive_actuator: np.ndarray    # (N+1,)
+    tension_actuator: np.ndarray  # (N+1,)
+    loop_sites: np.ndarray    # (N, 2) site ids of j{i}_C_top, j{i}_C_bc
+    bar_bodies: np.ndarray    # (3N,) body ids of the bars
+    other_bodies: np.ndarray  # helpers and motors
+    rigid_equality: np.ndarray    # (N+1,) equality ids of c{j}_rigid, or empty
+
+
+def model_index(model) -> ModelIndex:
+    """Look up every address the plant and the cross-validation need, by name."""
+    import mujoco
+
+    def ids(kind, names):
+        out = []
+        for nm in names:
+            i = mujoco.mj_name2id(model, kind, nm)
+            if i < 0:
+                raise ValueError(f"model: no {kind.name.removeprefix('mjOBJ_').lower()} named {nm!r} "
+                                 "(not a neck_sim model?)")
+            out.append(i)
+        return np.array(out, dtype=int)
+
+    J = mujoco.mjtObj.mjOBJ_JOINT
+    n = 0
+    while mujoco.mj_name2id(model, J, f"j{n + 1}_A") >= 0:
+        n += 1
+    if n == 0:
+        raise ValueError("model: no joint named 'j1_A' (not a neck_sim model?)")
+    jn = range(1, n + 1)
+    jA, jB, jD = (ids(J, [f"j{i}_{h}" for i in jn]) for h in "ABD")
+    jH = ids(J, [f"j{i}_helper" for i in range(1, n)])
+    jM = ids(J, [f"motor{j}" for j in range(1, n + 2)])
+    q = model.jnt_qposadr
+    v = model.jnt_dofadr
+    B = mujoco.mjtObj.mjOBJ_BODY
+    bars = ids(B, [f"j{i}_{p}" for i in jn for p in ("ad", "bc", "top")])
+    others = np.concatenate([ids(B, [f"j{i}_helper" for i in range(1, n)]),
+                             ids(B, [f"motor{j}" for j in range(1, n + 2)])])
+    rigid = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"c{j}_rigid")
+                      for j in range(1, n + 2)], dtype=int)
+    rigid = rigid if np.all(rigid >= 0) else np.zeros(0, dtype=int)
+    S = mujoco.mjtObj.mjOBJ_SITE
+    loops = np.stack([ids(S, [f"j{i}_C_top" for i in jn]), ids(S, [f"j{i}_C_bc" for i in jn])], axis=1)
+    return ModelIndex(n, q[jA], q[jB], q[jD], q[jH], q[jM], v[jA], v[jB], v[jD], v[jH], v[jM],
+                      ids(mujoco.mjtObj.mjOBJ_TENDON, [f"c{j}" for j in range(1, n + 2)]),
+                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"drive{j}" for j in range(1, n + 2)]),
+                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"tension{j}" for j in range(1, n + 2)]),
+                      loops, bars, others, rigid)
+
+
+class PoseQpos(NamedTuple):
+    """Hinge angles of the closed-form pose and their derivatives d q / d alpha_i (per joint)."""
+
+    q_A: np.ndarray
+    q_B: np.ndarray
+    q_D: np.ndarray
+    q_helper: np.ndarray
+    dq_A: np.ndarray
+    dq_B: np.ndarray
+    dq_D: np.ndarray
+    dq_helper: np.ndarray
+
+
+def pose_qpos(alpha, params: NeckParams) -> PoseQpos:
+    """Hinge angles (relative to the straight pose) that put the bars on the closed-form pose.
+
+    q_A = angle(D - A) - its straight value, q_B = psi - psi(0), q_D = alpha - q_A, helpers
+    alpha/2; shapes (..., N) (helpers (..., N-1)).  The derivatives are those of the closed form
+    (eqs 1, 2, 7 differentiated), i.e. the analytic model's own kinematics.
+    """
+    g = params.geometry
+    n = g.n_joints
+    a = check_alpha(alpha, n)
+    A = np.array([-g.b / 2, 0.0])
+    B = np.array([g.b / 2, 0.0])
+    jl = _joint_local(a, g.b, g.L)
+    j0 = _joint_local(np.zeros(n), g.b, g.L)
+
+    def ang(v):
+        return np.arctan2(v[..., 1], v[..., 0])
+
+    def cross(u, w):
+        return u[..., 0] * w[..., 1] - u[..., 1] * w[..., 0]
+
+    q_A = ang(jl.D - A) - ang(j0.D - A)
+    q_B = ang(jl.C - B) - ang(j0.C - B)
+    dq_A = cross(jl.D - A, jl.dD) / g.L ** 2
+    dq_B = cross(jl.C - B, jl.dC) / g.L ** 2
+    return PoseQpos(q_A, q_B, a - q_A, a[..., : n - 1] / 2, dq_A, dq_B, 1.0 - dq_A,
+                    np.full(a[..., : n - 1].shape, 0.5))
+
+
+if __name__ == "__main__":      # regenerate the committed file: python -m neck_sim.mjcf
+    from neck_sim.params import default_params
+    write_xml(default_params(3), committed_xml_path())
+    print(f"wrote {committed_xml_path()}")
