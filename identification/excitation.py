@@ -4,8 +4,9 @@
 would show if it tracked it exactly, by inverting the model (the trajectory is a flat output):
 
 1. joint torques from the bar linkage, Gamma = M_m alpha_ddot + c_m + g (eq 30);
-2. cable tensions meeting Z t = Gamma with the least tension at ``t_min`` (the one-parameter
-   family of eq 63 in the long cable's tension, the largest of the N + 1 candidates, as §6.2);
+2. cable tensions meeting Z t = Gamma (``controllers.tension.distribute_tensions``, eq 63) whose
+   forces meet eq (65) with the plant's own friction at the rigid-cable motor speeds (control
+   law 2 with a perfect friction model): every force at least f_min, every tension at least t_min;
 3. elongations from eq (54) integrated exactly per sample, c_a x_dot = t - (k + lambda t) x;
 4. motor angles from the corrected eq (27), theta = (R/r_d)(x_c - (l_c - l_c0));
 5. commanded forces from eq (29), f = t + f_friction(theta_dot) + (R/r_d) I_a theta_ddot.
@@ -23,12 +24,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from controllers.tension import distribute_tensions, tension_lower_bounds
 from neck_sim.analytic import cable_lengths, linkage_dynamics, motor_friction, transmission_matrix
 from neck_sim.params import NeckParams
 
 from identification.preprocessing import Measurements
 
-__all__ = ["PredictedRun", "min_tension_distribution", "predict_run", "synthetic_measurements"]
+__all__ = ["PredictedRun", "predict_run", "synthetic_measurements"]
 
 
 class PredictedRun(NamedTuple):
@@ -41,25 +43,6 @@ class PredictedRun(NamedTuple):
     force: np.ndarray      # (T, N+1) N, commanded
     tension: np.ndarray    # (T, N+1) N
     x_c: np.ndarray        # (T, N+1) m, elongation
-
-
-def min_tension_distribution(Z, torque, t_min: float) -> np.ndarray:
-    """Tensions t (..., N+1) with Z t = torque and min_i t_i = t_min (eq 63, one free parameter).
-
-    t = (Z1^-1 Gamma, 0) + (-Z1^-1 Z2, 1) t_{N+1}; every entry of the second vector is positive,
-    so the smallest t_{N+1} meeting every bound is the largest of the N + 1 candidates.
-    """
-    Z = np.asarray(Z, dtype=float)
-    Z1, Z2 = Z[..., :, :-1], Z[..., :, -1]
-    part = np.linalg.solve(Z1, np.asarray(torque, dtype=float)[..., None])[..., 0]
-    null = -np.linalg.solve(Z1, Z2[..., None])[..., 0]
-    part = np.concatenate([part, np.zeros(part.shape[:-1] + (1,))], axis=-1)
-    null = np.concatenate([null, np.ones(null.shape[:-1] + (1,))], axis=-1)
-    if np.any(null <= 0):
-        raise ValueError("tension distribution: -Z1^-1 Z2 has a non-positive entry (pose outside the "
-                         "range where the long cable can balance the others)")
-    t_last = np.max((t_min - part) / null, axis=-1)
-    return part + t_last[..., None] * null
 
 
 def _elongation_series(tension: np.ndarray, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
@@ -81,9 +64,8 @@ def _elongation_series(tension: np.ndarray, dt: float, k, lam, c_a, x0=None) -> 
 def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: float | None = None) -> PredictedRun:
     """Signals of the exactly tracked trajectory alpha(t) (T, N) with its derivatives, on times t (T,).
 
-    The plant is ``params`` (friction.f_s, cables.k/lam/c_a are the "true" values); tensions keep
-    the least one at ``t_min`` (default ``actuation.t_min``).  Evenly spaced t are assumed for the
-    numerical derivative of theta_dot.
+    The plant is ``params`` (friction.f_s, cables.k/lam/c_a are the "true" values); ``t_min``
+    defaults to ``actuation.t_min``.  Evenly spaced t are assumed (numerical derivatives).
     """
     n = params.n_joints
     t = np.asarray(t, dtype=float)
@@ -96,9 +78,13 @@ def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: f
     lk = linkage_dynamics(alpha, alpha_dot, params)
     torque = np.einsum("...ij,...j->...i", lk.M, alpha_ddot) + lk.c + lk.g
     Z = transmission_matrix(alpha, params)
-    tension = min_tension_distribution(Z, torque, act.t_min if t_min is None else t_min)
-    x_c = _elongation_series(tension, dt, cab.k, cab.lam, cab.c_a)
     ratio = act.R / act.r_d
+    theta_dot_d = ratio * np.einsum("...ij,...i->...j", Z, alpha_dot)
+    theta_ddot_d = np.gradient(theta_dot_d, dt, axis=0)
+    lower_f = tension_lower_bounds(theta_dot_d, theta_ddot_d, params, f_s=params.friction.f_s, t_min=t_min)
+    lower_t = lower_f - motor_friction(theta_dot_d, params) - ratio * act.I_a * theta_ddot_d
+    tension = distribute_tensions(Z, torque, lower_t, f_max=1e12).requested
+    x_c = _elongation_series(tension, dt, cab.k, cab.lam, cab.c_a)
     theta = ratio * (x_c - cable_lengths(alpha, params))
     x_dot = np.gradient(x_c, dt, axis=0)
     theta_dot = ratio * (x_dot + np.einsum("...ij,...i->...j", Z, alpha_dot))   # Z^T a_dot = (r_d/R) th_dot - x_dot

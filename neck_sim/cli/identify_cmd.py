@@ -1,0 +1,55 @@
+"""`neck-sim identify LOG`: the paper's §5 identification of friction and cable stiffness from a log."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
+    parser.add_argument("--json", metavar="PATH", help="write the identified values, sigmas and errors as JSON")
+    parser.add_argument("--plots", metavar="DIR", help="write figures 4-8 as PNG files into DIR")
+    parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
+    parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
+    parser.add_argument("--models", default="friction,elastic,variable",
+                        help="comma-separated subset of friction,elastic,variable (default: all)")
+    parser.add_argument("--motor-cutoff", type=float, default=None, metavar="HZ",
+                        help="Butterworth cutoff for encoders and forces (default: residual analysis)")
+    parser.add_argument("--camera-cutoff", type=float, default=None, metavar="HZ",
+                        help="Butterworth cutoff for the camera angles (default: residual analysis)")
+    parser.add_argument("--weight", type=float, default=100.0, help="weight W of the torque rows, eqs (44)-(45)")
+    parser.add_argument("--slack-threshold", type=float, default=2.0, metavar="N",
+                        help="tension (eq 41) below which a cable sample counts as slack and is left out")
+    parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
+
+
+def run(args) -> int:
+    from identification.paper import IdentificationSettings, format_tables, identify_log
+    from identification.preprocessing import PreprocessSettings
+    from neck_sim.logs import read_log
+    from neck_sim.params import atomic_write_bytes
+
+    models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    settings = IdentificationSettings(
+        weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
+        preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
+    log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"), require=("motors",))
+    if log.camera is None:
+        raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
+                         f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
+    print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
+          file=sys.stderr)
+    result = identify_log(log, settings, models=models)
+    print(format_tables(result))
+    if args.json:
+        atomic_write_bytes(args.json, (json.dumps(result.to_dict(), indent=2) + "\n").encode())
+        print(f"wrote {args.json}", file=sys.stderr)
+    if args.plots:
+        from identification.plots import save_identification_figures
+
+        for path in save_identification_figures(result, args.plots):
+            print(f"wrote {path}", file=sys.stderr)
+    return 0
