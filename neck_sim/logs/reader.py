@@ -1,0 +1,457 @@
+"""Read a contract log into numpy arrays, validating the contract on the way.
+
+``read_log(path)`` returns a :class:`Log` with one samples object per topic (time vector ``t``
+(T,) s plus the fields as (T, n) arrays).  A time window (``start``/``end``, s) is served from
+the MCAP chunk index: chunks outside it are never read.  Within a chunk, the message index gives
+each message's offset, so decoding is vectorised:
+
+* all payloads of a topic are joined and, when every message has the layout the writer produces
+  (checked by comparing the number-free skeleton of all messages with the expected one), the
+  numbers are parsed in one ``np.fromstring`` call;
+* otherwise (another producer, other key order, whitespace) the payloads are parsed with
+  ``json.loads``, which also locates the first bad message when the data is wrong.
+
+Files without a summary or message index are read through the ``mcap`` library's reader.
+Every problem (missing topic/field/record, wrong array length, non-finite number, time not
+increasing, t != log_time, truncated or corrupt file) raises :class:`LogError` naming it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import warnings
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader
+
+from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, params_from_metadata,
+                                    resolve_topic)
+from neck_sim.params import NeckParams
+
+__all__ = ["read_log", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
+           "TruthSamples"]
+
+_MAGIC = b"\x89MCAP0\r\n"
+_OP_CHUNK, _OP_MESSAGE_INDEX, _OP_MESSAGE = 0x06, 0x07, 0x05
+_NUMBER_CHARS = b"0123456789.+-eE"
+_READ_ERRORS = (McapError, struct.error, ValueError, KeyError, IndexError, EOFError, OSError)
+_T_TOLERANCE_NS = 1000          # |t * 1e9 - log_time| allowed (the contract: the same instant)
+
+
+@dataclass(frozen=True)
+class MotorSamples:
+    """``/neck/motors``: t (T,) s, theta (T, N+1) rad, force (T, N+1) N."""
+    t: np.ndarray
+    theta: np.ndarray
+    force: np.ndarray
+
+
+@dataclass(frozen=True)
+class CameraSamples:
+    """``/neck/camera``: t (T,) s, alpha (T, N) rad."""
+    t: np.ndarray
+    alpha: np.ndarray
+
+
+@dataclass(frozen=True)
+class ReferenceSamples:
+    """``/neck/reference``: t (T,) s, alpha_d (T, N) rad."""
+    t: np.ndarray
+    alpha_d: np.ndarray
+
+
+@dataclass(frozen=True)
+class EstimateSamples:
+    """``/neck/estimate``: t (T,) s, alpha_hat (T, N) rad."""
+    t: np.ndarray
+    alpha_hat: np.ndarray
+
+
+@dataclass(frozen=True)
+class TruthSamples:
+    """``/neck/truth`` (simulation only): t, alpha, alpha_dot (T, N), tension, elongation (T, N+1)."""
+    t: np.ndarray
+    alpha: np.ndarray
+    alpha_dot: np.ndarray
+    tension: np.ndarray
+    elongation: np.ndarray
+
+
+_SAMPLES = {"motors": MotorSamples, "camera": CameraSamples, "reference": ReferenceSamples,
+            "estimate": EstimateSamples, "truth": TruthSamples}
+
+
+@dataclass(frozen=True)
+class Log:
+    """A contract log read into numpy. Topics absent from the file (or not asked for) are None.
+
+    ``metadata`` is the ``neck`` record, ``params`` the NeckParams it describes (defaults for
+    everything it does not hold), ``run_info`` the ``run`` record (versions, seed, command line,
+    plant settings: never to be used by analyses of measured data), ``message_counts`` the number
+    of messages per topic in the whole file.
+    """
+
+    path: str
+    params: NeckParams
+    metadata: dict[str, str]
+    run_info: dict[str, str]
+    attachments: dict[str, bytes]
+    message_counts: dict[str, int]
+    motors: MotorSamples | None = None
+    camera: CameraSamples | None = None
+    reference: ReferenceSamples | None = None
+    estimate: EstimateSamples | None = None
+    truth: TruthSamples | None = None
+    window: tuple[float | None, float | None] = field(default=(None, None))
+
+    @property
+    def n_joints(self) -> int:
+        return self.params.n_joints
+
+
+def _to_ns(value: float | None, name: str) -> int | None:
+    if value is None:
+        return None
+    v = float(value)
+    if not np.isfinite(v) or v < 0:
+        raise LogError(f"read_log: {name} must be a finite time >= 0 s, got {value!r}")
+    return int(round(v * 1e9))
+
+
+def read_log(path, *, start: float | None = None, end: float | None = None, topics=None,
+             require=("motors",)) -> Log:
+    """Read a contract log into numpy arrays.
+
+    Args:
+      path: the ``.mcap`` file.
+      start, end: time window [start, end) in s since the start of the run (None: open end);
+        served from the chunk index, so a short window of a long log reads only its chunks.
+      topics: short names (``"motors"``) or MCAP topics to read; None reads every contract topic
+        present.  Required topics are always read.
+      require: topics that must be present (LogError naming the first one missing).
+
+    Raises:
+      LogError (a ValueError) naming the problem: unreadable, truncated or corrupt file, missing
+      ``neck`` record or key, missing required topic, missing field, wrong array length,
+      non-finite value, t not matching log_time, time not increasing.
+    """
+    path = os.fspath(path)
+    start_ns, end_ns = _to_ns(start, "start"), _to_ns(end, "end")
+    if start_ns is not None and end_ns is not None and end_ns < start_ns:
+        raise LogError(f"read_log: end = {end} s is before start = {start} s")
+    required = [resolve_topic(r) for r in require]
+    wanted = list(TOPICS) if topics is None else [resolve_topic(x) for x in topics]
+    wanted += [r for r in required if r not in wanted]
+    try:
+        fh = open(path, "rb")
+    except OSError as exc:
+        raise LogError(f"{path}: cannot open log ({exc.strerror})") from None
+    with fh:
+        if fh.read(len(_MAGIC)) != _MAGIC:
+            raise LogError(f"{path}: not an MCAP file (wrong magic bytes)")
+        fh.seek(0)
+        reader = SeekingReader(fh, validate_crcs=True)
+        try:
+            summary = reader.get_summary()
+        except _READ_ERRORS as exc:
+            raise LogError(f"{path}: truncated or corrupt MCAP file: no valid footer/summary at the end "
+                           f"(was the run interrupted before the log was closed?) [{exc}]") from None
+        try:
+            metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            attachments = {a.name: bytes(a.data) for a in reader.iter_attachments()}
+        except _READ_ERRORS as exc:
+            raise LogError(f"{path}: corrupt MCAP file: cannot read metadata/attachments [{exc}]") from None
+        if NECK_RECORD not in metadata:
+            raise LogError(f"{path}: missing metadata record {NECK_RECORD!r} (the neck's nominal constants)")
+        neck = metadata[NECK_RECORD]
+        try:
+            params = params_from_metadata(neck)
+        except LogError as exc:
+            raise LogError(f"{path}: {exc}") from None
+        n = params.n_joints
+
+        channels = {} if summary is None else {c.topic: c for c in summary.channels.values()}
+        counts = {}
+        if summary is not None and summary.statistics is not None:
+            by_id = summary.statistics.channel_message_counts
+            counts = {c.topic: int(by_id.get(cid, 0)) for cid, c in summary.channels.items()}
+        if summary is None:          # a valid MCAP without summary: scan it (counts are the window's)
+            payloads = _collect_linear(reader, path, None, start_ns, end_ns)
+            channels = {topic: None for topic in payloads}
+            counts = {topic: len(data) for topic, (_, data) in payloads.items()}
+        for spec in required:
+            if spec.topic not in channels or counts.get(spec.topic, 1) == 0:
+                raise LogError(f"{path}: missing required topic {spec.topic} ({spec.description})")
+        present = [s for s in wanted if s.topic in channels]
+        for spec in present:
+            ch = channels[spec.topic]
+            if ch is not None and ch.message_encoding != "json":
+                raise LogError(f"{path}: topic {spec.topic} has message encoding {ch.message_encoding!r}; "
+                               "the contract says 'json'")
+        if summary is not None:
+            ids = {channels[s.topic].id: s.topic for s in present}
+            payloads = _collect_indexed(fh, path, summary, ids, start_ns, end_ns)
+            if payloads is None:           # no message index: let the mcap reader walk the chunks
+                payloads = _collect_linear(reader, path, [s.topic for s in present], start_ns, end_ns)
+
+        samples = {}
+        for spec in present:
+            log_times, data = payloads.get(spec.topic) or _Payloads.concat([], [])
+            samples[spec.name] = _decode(path, spec, n, log_times, data)
+    return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
+               attachments=attachments, message_counts=counts, window=(start, end), **samples)
+
+
+# -- collecting payloads ---------------------------------------------------------------------------
+
+def _collect_linear(reader, path, topics, start_ns, end_ns) -> dict:
+    """topic -> (log_times, payloads) through the mcap library (files without message index)."""
+    out: dict[str, tuple[list, list]] = {}
+    try:
+        for _, channel, message in reader.iter_messages(topics=topics, log_time_order=False,
+                                                        starting_at=start_ns, ending_before=end_ns):
+            times, data = out.setdefault(channel.topic, ([], []))
+            times.append(message.log_time)
+            data.append(bytes(message.data))
+    except _READ_ERRORS as exc:
+        raise LogError(f"{path}: corrupt MCAP data [{exc}]") from None
+    return {topic: (np.array(t, dtype=np.int64), _Payloads.from_list(d)) for topic, (t, d) in out.items()}
+
+
+def _decompress(path, compression: str, data: bytes, size: int) -> bytes:
+    try:
+        if compression == "zstd":
+            import zstandard
+            return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        if compression == "lz4":
+            import lz4.frame
+            return lz4.frame.decompress(data)
+        if compression == "":
+            return data
+    except Exception as exc:       # zstd/lz4 raise their own error types on corrupt data
+        raise LogError(f"{path}: corrupt chunk: {compression} decompression failed ({exc})") from None
+    raise LogError(f"{path}: unsupported chunk compression {compression!r}")
+
+
+def _gather_u(arr: np.ndarray, offsets: np.ndarray, nbytes: int) -> np.ndarray:
+    """Little-endian unsigned integers of ``nbytes`` bytes at ``offsets`` of a uint8 array."""
+    idx = offsets[:, None] + np.arange(nbytes)
+    return arr[idx].copy().view(f"<u{nbytes}").ravel()
+
+
+def _collect_indexed(fh, path, summary, ids: dict[int, str], start_ns, end_ns) -> dict | None:
+    """topic -> (log_times, payloads) from the chunk and message indexes; None without them."""
+    out: dict[str, tuple[list, list]] = {topic: ([], []) for topic in ids.values()}
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    for ci in chunks:
+        if start_ns is not None and ci.message_end_time < start_ns:
+            continue
+        if end_ns is not None and ci.message_start_time >= end_ns:
+            continue
+        if not ci.message_index_offsets:
+            return None
+        wanted = [cid for cid in ids if cid in ci.message_index_offsets]
+        if not wanted:
+            continue
+        fh.seek(ci.chunk_start_offset)
+        raw = fh.read(ci.chunk_length + ci.message_index_length)
+        if len(raw) != ci.chunk_length + ci.message_index_length:
+            raise LogError(f"{path}: truncated file: chunk at byte {ci.chunk_start_offset} runs past the end")
+        try:
+            if raw[0] != _OP_CHUNK:
+                raise LogError(f"{path}: corrupt index: no chunk at byte {ci.chunk_start_offset}")
+            _, _, size, crc, clen = struct.unpack_from("<QQQII", raw, 9)
+            compression = raw[41:41 + clen].decode()
+            (rlen,) = struct.unpack_from("<Q", raw, 41 + clen)
+            body = raw[49 + clen:49 + clen + rlen]
+        except (struct.error, UnicodeDecodeError):
+            raise LogError(f"{path}: corrupt chunk header at byte {ci.chunk_start_offset}") from None
+        buf = _decompress(path, compression, body, size)
+        if len(buf) != size or (crc != 0 and zlib.crc32(buf) != crc):
+            raise LogError(f"{path}: corrupt chunk at byte {ci.chunk_start_offset}: CRC/size mismatch")
+        arr = np.frombuffer(buf, dtype=np.uint8)
+        for cid in wanted:
+            topic = ids[cid]
+            off = ci.message_index_offsets[cid] - ci.chunk_start_offset
+            try:
+                op, _, ch, nbytes = struct.unpack_from("<BQHI", raw, off)
+            except struct.error:
+                raise LogError(f"{path}: corrupt message index after chunk at byte {ci.chunk_start_offset}") from None
+            if op != _OP_MESSAGE_INDEX or ch != cid or off + 15 + nbytes > len(raw) or nbytes % 16:
+                raise LogError(f"{path}: corrupt message index for {topic} after chunk at byte {ci.chunk_start_offset}")
+            entries = np.frombuffer(raw, dtype="<u8", count=nbytes // 8, offset=off + 15).reshape(-1, 2)
+            entries = entries[np.argsort(entries[:, 1], kind="stable")]     # file order
+            times, offsets = entries[:, 0].astype(np.int64), entries[:, 1].astype(np.int64)
+            keep = np.ones(len(times), bool)
+            if start_ns is not None:
+                keep &= times >= start_ns
+            if end_ns is not None:
+                keep &= times < end_ns
+            times, offsets = times[keep], offsets[keep]
+            if len(offsets) == 0:
+                continue
+            if offsets.max() + 31 > len(buf):
+                raise LogError(f"{path}: corrupt message index for {topic}: offset past the chunk end")
+            lengths = _gather_u(arr, offsets + 1, 8).astype(np.int64)
+            ok = ((arr[offsets] == _OP_MESSAGE) & (_gather_u(arr, offsets + 9, 2) == cid)
+                  & (_gather_u(arr, offsets + 15, 8).astype(np.int64) == times)
+                  & (offsets + 9 + lengths <= len(buf)) & (lengths >= 22))
+            if not ok.all():
+                raise LogError(f"{path}: corrupt message index for {topic}: it does not point at its messages")
+            out[topic][0].append(times)
+            out[topic][1].append(_gather_payloads(buf, offsets + 31, lengths - 22))
+    return {topic: _Payloads.concat(t, d) for topic, (t, d) in out.items()}
+
+
+def _gather_payloads(buf: bytes, starts: np.ndarray, sizes: np.ndarray) -> "_Payloads":
+    """Payloads [starts, starts + sizes) of ``buf`` joined with commas (slicing is ~0.1 us each)."""
+    first = np.zeros(len(starts), np.int64)
+    first[1:] = np.cumsum(sizes[:-1] + 1)
+    blob = b",".join([buf[a:b] for a, b in zip(starts.tolist(), (starts + sizes).tolist())])
+    return _Payloads(blob, first, sizes)
+
+
+class _Payloads:
+    """Message payloads of one topic: ``blob`` = payloads joined by commas, with their bounds."""
+
+    def __init__(self, blob: bytes, first: np.ndarray, sizes: np.ndarray):
+        self.blob, self.first, self.sizes = blob, first, sizes
+
+    def __len__(self) -> int:
+        return len(self.first)
+
+    def __getitem__(self, i: int) -> bytes:
+        return self.blob[self.first[i]:self.first[i] + self.sizes[i]]
+
+    @classmethod
+    def from_list(cls, data: list) -> "_Payloads":
+        sizes = np.array([len(d) for d in data], dtype=np.int64)
+        first = np.zeros(len(data), np.int64)
+        first[1:] = np.cumsum(sizes[:-1] + 1)
+        return cls(b",".join(data), first, sizes)
+
+    @classmethod
+    def concat(cls, times: list, parts: list) -> tuple[np.ndarray, "_Payloads"]:
+        if not parts:
+            return np.zeros(0, np.int64), cls(b"", np.zeros(0, np.int64), np.zeros(0, np.int64))
+        shift = np.cumsum([0] + [len(p.blob) + 1 for p in parts[:-1]])
+        first = np.concatenate([p.first + d for p, d in zip(parts, shift)])
+        sizes = np.concatenate([p.sizes for p in parts])
+        return np.concatenate(times), cls(b",".join(p.blob for p in parts), first, sizes)
+
+
+# -- decoding --------------------------------------------------------------------------------------
+
+_TEMPLATES: dict[tuple[str, int], tuple[bytes, bool, int]] = {}
+# Structure characters and key letters become spaces; digits, signs, '.', 'e', 'E' and ',' stay.
+_TO_NUMBERS = bytes(c if chr(c) in "0123456789.+-eE," else ord(" ") for c in range(256))
+
+
+def _template(spec: TopicSpec, n: int):
+    """(number-free skeleton of one message as the writer lays it out, whether a key holds an 'e',
+    numbers per message)."""
+    key = (spec.name, n)
+    if key not in _TEMPLATES:
+        lengths = spec.lengths(n)
+        msg = {"t": 0, **{f: [0] * k for f, k in zip(spec.field_names, lengths)}}
+        text = json.dumps(msg, separators=(",", ":")).encode()
+        keys_have_e = any(set(f) & set("eE") for f in spec.field_names)
+        _TEMPLATES[key] = (text.translate(None, _NUMBER_CHARS), keys_have_e, 1 + sum(lengths))
+    return _TEMPLATES[key]
+
+
+def _decode_fast(spec: TopicSpec, n: int, data: "_Payloads") -> np.ndarray | None:
+    """(T, K) numbers when every message has the writer's layout, else None.
+
+    The skeleton check (all messages, numbers deleted, equal the template) guarantees every number
+    sits where the template puts it; the numbers are then parsed in one C call.
+    """
+    skeleton, keys_have_e, k = _template(spec, n)
+    if data.blob.translate(None, _NUMBER_CHARS) != (skeleton + b",") * (len(data) - 1) + skeleton:
+        return None
+    text = data.blob.translate(_TO_NUMBERS)
+    if keys_have_e:            # a key like "theta" is now " e " (numbers never have a lone e)
+        text = text.replace(b" e ", b"   ")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            values = np.fromstring(text, sep=",")
+        except (ValueError, DeprecationWarning):
+            return None
+    if values.size != k * len(data):
+        return None
+    return values.reshape(len(data), k)
+
+
+def _decode_json(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_Payloads") -> dict:
+    """Field arrays through json.loads, with errors locating the first bad message."""
+    def where(i):
+        return f"message {i} (log_time {int(log_times[i]) * 1e-9:.6f} s)"
+
+    try:
+        msgs = json.loads(b"[" + data.blob + b"]")
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        for i in range(len(data)):
+            try:
+                json.loads(data[i])
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                raise LogError(f"{path}: {spec.topic}: {where(i)} is not valid JSON ({exc})") from None
+        raise LogError(f"{path}: {spec.topic}: messages are not valid JSON") from None
+    out = {}
+    for name, length in (("t", None), *zip(spec.field_names, spec.lengths(n))):
+        for i, m in enumerate(msgs):
+            if not isinstance(m, dict):
+                raise LogError(f"{path}: {spec.topic}: {where(i)} is not a JSON object")
+            if name not in m:
+                raise LogError(f"{path}: {spec.topic}: missing field {name!r} in {where(i)}")
+            v = m[name]
+            if length is None:
+                ok = isinstance(v, (int, float)) and not isinstance(v, bool)
+                if not ok:
+                    raise LogError(f"{path}: {spec.topic}: field 't' of {where(i)} is not a number: {v!r}")
+            elif not isinstance(v, list) or len(v) != length:
+                got = f"{len(v)} values" if isinstance(v, list) else repr(v)
+                kind = "N + 1 cables" if length == n + 1 else "N joints"
+                raise LogError(f"{path}: {spec.topic}: field {name!r} of {where(i)} has {got}, expected "
+                               f"{length} ({kind}, N = {n} from the {NECK_RECORD!r} record)")
+            elif not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                raise LogError(f"{path}: {spec.topic}: field {name!r} of {where(i)} holds a non-number: {v!r}")
+        out[name] = np.array([m[name] for m in msgs], dtype=float)
+    return out
+
+
+def _decode(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_Payloads"):
+    lengths = spec.lengths(n)
+    if len(data) == 0:
+        fields = {"t": np.zeros(0)} | {f: np.zeros((0, k)) for f, k in zip(spec.field_names, lengths)}
+    else:
+        table = _decode_fast(spec, n, data)
+        if table is None:
+            fields = _decode_json(path, spec, n, log_times, data)
+        else:
+            fields, col = {"t": table[:, 0].copy()}, 1
+            for f, k in zip(spec.field_names, lengths):
+                fields[f] = table[:, col:col + k].copy()
+                col += k
+    for name, values in fields.items():
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.flatnonzero(bad.reshape(len(values), -1).any(axis=1))[0])
+            raise LogError(f"{path}: {spec.topic}: field {name!r} of message {i} holds NaN or infinity")
+    t = fields["t"]
+    mismatch = np.abs(t * 1e9 - log_times) > _T_TOLERANCE_NS
+    if mismatch.any():
+        i = int(np.flatnonzero(mismatch)[0])
+        raise LogError(f"{path}: {spec.topic}: message {i} has t = {float(t[i])!r} s but log_time = {int(log_times[i])} ns "
+                       "(the contract: log_time = round(t * 1e9))")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise LogError(f"{path}: {spec.topic}: time not increasing at message {i}: t = {float(t[i])!r} s after "
+                       f"{float(t[i - 1])!r} s")
+    return _SAMPLES[spec.name](**fields)
