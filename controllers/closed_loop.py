@@ -157,8 +157,7 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
 
     p = controller.params
     n = p.n_joints
-    if trajectory.n_joints != n:
-        raise ValueError(f"trajectory has {trajectory.n_joints} joints, the controller's model has {n}")
+    trajectory.check_workspace(p)
     plant_rate = plant.params.control.rate_hz
     if abs(plant_rate - p.control.rate_hz) > 1e-9:
         raise ValueError(f"control rate: plant steps at {plant_rate} Hz, controller at {p.control.rate_hz} Hz")

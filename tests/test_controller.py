@@ -87,6 +87,23 @@ def test_gamma_is_eq66_and_forces_produce_it(params):
     assert np.all(out.forces >= lb - 1e-9) and np.any(np.isclose(out.forces, lb))
 
 
+def test_pid_terms_of_eq59(params):
+    """Two periods with a known estimate error: w = alpha_d'' + k_v e' + k_p e + k_i int e."""
+    c = ComputedTorqueController(params, 1)
+    dt = 1 / params.control.rate_hz
+    k_p, k_v, k_i = 3 * 11.0 ** 2, 3 * 11.0, 11.0 ** 3
+    ref = c.motor_reference(_static_reference(np.radians([10.0, 10.0, 10.0]), alpha_ddot=[0.5, 0.0, -0.5]))
+    c.reset()
+    out0 = c.step(np.zeros(4), ref)                          # alpha_hat = 0
+    e0 = np.radians([10.0, 10.0, 10.0])
+    np.testing.assert_allclose(out0.w, [0.5, 0, -0.5] + k_p * e0 + k_i * e0 * dt)
+    pose = np.radians([1.0, 2.0, 3.0])
+    out1 = c.step(motor_angles_rigid(pose, params), ref)
+    e1 = e0 - out1.alpha_hat
+    np.testing.assert_allclose(out1.w, [0.5, 0, -0.5] + k_v * (-out1.alpha_hat / dt) + k_p * e1
+                               + k_i * (e0 + e1) * dt)
+
+
 def test_law_1_has_no_friction_and_beliefs_are_separate(params):
     alpha = np.radians([10.0, 10.0, 10.0])
     ad = np.array([0.4, 0.4, 0.4])
