@@ -1,0 +1,147 @@
+"""Turn the CSV files a prototype produces into a contract log (``neck-sim import``).
+
+Files (comma-separated, one header row naming the columns, any column order, extra columns
+ignored, blank lines and lines starting with ``#`` skipped, SI units, one row per sample, time
+strictly increasing):
+
+=============== ====================================================================== ==========
+file            columns (N = number of X-joints of the parameter file)                 topic
+=============== ====================================================================== ==========
+motors CSV      ``t`` (s), ``theta1`` .. ``theta{N+1}`` (rad, motor shaft, 0 at the    /neck/motors
+                straight rest pose, > 0 winds the cable up), ``force1`` ..
+                ``force{N+1}`` (commanded cable force, N); index N+1 is the long left
+                cable
+camera CSV      ``t`` (s), ``alpha1`` .. ``alpha{N}`` (rad, joint angles from video)    /neck/camera
+reference CSV   ``t``, ``alpha_d1`` .. ``alpha_d{N}`` (rad), optional                  /neck/reference
+estimate CSV    ``t``, ``alpha_hat1`` .. ``alpha_hat{N}`` (rad), optional              /neck/estimate
+=============== ====================================================================== ==========
+
+Times are seconds since the start of the run (>= 0); ``shift_time=True`` subtracts the earliest
+time found in the files instead (for clocks that do not start at zero).  Column names are
+matched without regard to case and surrounding spaces.  The nominal constants of the ``neck``
+record come from the parameter file (defaults of a 3-joint neck without one).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from neck_sim.logs import LogWriter
+from neck_sim.params import NeckParams, default_params
+
+__all__ = ["csv_columns", "read_csv_table", "import_csv", "ImportResult"]
+
+
+def csv_columns(kind: str, n_joints: int) -> list[str]:
+    """Required columns of a ``motors``, ``camera``, ``reference`` or ``estimate`` CSV."""
+    n1 = n_joints + 1
+    if kind == "motors":
+        return ["t"] + [f"theta{j}" for j in range(1, n1 + 1)] + [f"force{j}" for j in range(1, n1 + 1)]
+    prefix = {"camera": "alpha", "reference": "alpha_d", "estimate": "alpha_hat"}.get(kind)
+    if prefix is None:
+        raise ValueError(f"unknown CSV kind {kind!r} (motors, camera, reference, estimate)")
+    return ["t"] + [f"{prefix}{i}" for i in range(1, n_joints + 1)]
+
+
+def read_csv_table(path, columns: list[str]) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Read the named columns of a CSV file as float arrays; returns (columns, ignored names).
+
+    Raises ValueError naming the file, line and column of the first problem: missing or duplicate
+    column, wrong number of cells, a cell that is not a finite number, time not increasing.
+    """
+    path = os.fspath(path)
+    try:
+        fh = open(path, newline="", encoding="utf-8-sig")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read CSV file ({exc.strerror})") from None
+    with fh:
+        rows = [(i + 1, row) for i, row in enumerate(csv.reader(fh))
+                if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    if not rows:
+        raise ValueError(f"{path}: empty CSV file (expected a header row: {', '.join(columns)})")
+    header_line, header = rows[0]
+    names = [h.strip().lower() for h in header]
+    dup = sorted({h for h in names if names.count(h) > 1})
+    if dup:
+        raise ValueError(f"{path}:{header_line}: duplicate column(s) {', '.join(dup)}")
+    missing = [c for c in columns if c.lower() not in names]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (needed: {', '.join(columns)}; "
+                         f"found: {', '.join(h.strip() for h in header)})")
+    index = [names.index(c.lower()) for c in columns]
+    ignored = [h.strip() for h, low in zip(header, names) if low not in {c.lower() for c in columns}]
+    if len(rows) < 2:
+        raise ValueError(f"{path}: no data rows after the header")
+    data = np.empty((len(rows) - 1, len(columns)))
+    for r, (line, row) in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise ValueError(f"{path}:{line}: expected {len(header)} cells (as in the header), got {len(row)}")
+        for c, i in enumerate(index):
+            cell = row[i].strip()
+            try:
+                v = float(cell)
+            except ValueError:
+                raise ValueError(f"{path}:{line}: column {columns[c]}: {cell!r} is not a number") from None
+            if not math.isfinite(v):
+                raise ValueError(f"{path}:{line}: column {columns[c]}: {cell!r} is not a finite number")
+            data[r, c] = v
+    t = data[:, 0]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        r = int(back[0]) + 1
+        raise ValueError(f"{path}:{rows[r + 1][0]}: time not increasing: t = {float(t[r])!r} s after {float(t[r - 1])!r} s")
+    return {c: data[:, k] for k, c in enumerate(columns)}, ignored
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    """What ``import_csv`` wrote: samples per topic, time shift applied (s), ignored columns."""
+
+    path: str
+    counts: dict[str, int]
+    duration: float
+    time_shift: float
+    ignored_columns: dict[str, list[str]]
+
+
+def import_csv(motors, output, *, camera=None, reference=None, estimate=None, params: NeckParams | None = None,
+               shift_time: bool = False, run_info: dict | None = None) -> ImportResult:
+    """Write a contract log at ``output`` from prototype CSV files (columns: module docstring).
+
+    ``params`` are the nominal constants for the ``neck`` record (default: 3-joint defaults).
+    """
+    params = default_params(3) if params is None else params
+    n = params.n_joints
+    files = {"motors": motors, "camera": camera, "reference": reference, "estimate": estimate}
+    tables, ignored = {}, {}
+    for kind, path in files.items():
+        if path is not None:
+            tables[kind], ignored[kind] = read_csv_table(path, csv_columns(kind, n))
+    t0 = min(tab["t"][0] for tab in tables.values())
+    shift = float(t0) if shift_time else 0.0
+    if not shift_time and t0 < 0:
+        kind = min(tables, key=lambda k: tables[k]["t"][0])
+        raise ValueError(f"{files[kind]}: negative time t = {float(t0)!r} s (times are s since the start of the run; "
+                         "use --shift-time to start at the earliest sample)")
+    events = []
+    for kind, tab in tables.items():
+        cols = csv_columns(kind, n)[1:]
+        if kind == "motors":
+            arrays = (np.stack([tab[c] for c in cols[: n + 1]], 1), np.stack([tab[c] for c in cols[n + 1:]], 1))
+        else:
+            arrays = (np.stack([tab[c] for c in cols], 1),)
+        t = tab["t"] - shift
+        events += [(t[i], kind, i, arrays) for i in range(len(t))]
+    events.sort(key=lambda e: (e[0], e[1]))
+    info = {"source": "csv import", **{f"{k}_csv": os.path.abspath(v) for k, v in files.items() if v is not None},
+            "time_shift_s": shift, **(run_info or {})}
+    with LogWriter(output, params, run_info=info) as w:
+        for t, kind, i, arrays in events:
+            getattr(w, kind)(t, *(a[i] for a in arrays))
+    end = max(tab["t"][-1] for tab in tables.values()) - shift
+    return ImportResult(os.fspath(output), {k: len(v["t"]) for k, v in tables.items()}, float(end), shift, ignored)
