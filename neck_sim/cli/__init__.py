@@ -17,6 +17,7 @@ import sys
 COMMANDS: dict[str, str] = {
     "params": "params_cmd",
     "pulleys": "pulleys_cmd",
+    "crossval": "crossval_cmd",
     "import": "import_cmd",
     "identify": "identify_cmd",
 }

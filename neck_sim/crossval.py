@@ -1,0 +1,199 @@
+"""Cross-validation: the MuJoCo model of :mod:`neck_sim.mjcf` against the analytic model.
+
+For random poses alpha in [-range, range]^N the bars are placed exactly on the closed-form pose
+(every hinge set from :func:`neck_sim.mjcf.pose_qpos`), and MuJoCo's own quantities are mapped
+to alpha-space with the velocity map J = dq/dalpha computed *from MuJoCo*: the null space of the
+loop-closure (``connect``) and helper (tendon equality) constraint Jacobians with the motors held
+and alpha_i = q_A,i + q_D,i.  Then
+
+* lengths: ``ten_length(alpha) - ten_length(0)`` of the cable tendons vs
+  :func:`~neck_sim.analytic.cable_lengths` (absolute error, m);
+* Z: ``-(ten_J J)^T`` vs :func:`~neck_sim.analytic.transmission_matrix`;
+* M: ``J^T M_q J`` (bar bodies only: helper and motor bodies are given zero mass) vs
+  :func:`~neck_sim.analytic.mass_matrix` (``motors=False``);
+* g: ``J^T (qfrc_bias - qfrc_spring)`` at rest vs :func:`~neck_sim.analytic.gravity_spring_torque`;
+* dq/dalpha: MuJoCo's J vs the closed-form derivative of :func:`~neck_sim.mjcf.pose_qpos`;
+* loop gap at the placed pose (m).
+
+Relative errors are max |mujoco - analytic| / max |analytic| per pose (a matrix-norm ratio, so
+that structurally zero entries do not divide), and the table reports the worst pose.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic.cables import cable_lengths, transmission_matrix
+from neck_sim.analytic.dynamics import gravity_spring_torque, mass_matrix
+from neck_sim.mjcf import build_model, model_index, pose_qpos
+from neck_sim.params import NeckParams, atomic_write_bytes
+
+__all__ = ["THRESHOLDS", "Row", "CrossvalReport", "crossval", "format_table"]
+
+THRESHOLDS = {           # quantity -> (kind, threshold); issue 3 item 4
+    "lengths": ("abs", 1e-9),
+    "Z": ("rel", 1e-6),
+    "M": ("rel", 1e-6),
+    "g": ("rel", 1e-6),
+    "dq/dalpha": ("rel", 1e-6),
+    "loop gap": ("abs", 1e-12),
+}
+
+
+class Row(NamedTuple):
+    quantity: str
+    max_abs: float
+    max_rel: float
+    kind: str          # which error the threshold applies to: "abs" or "rel"
+    threshold: float
+    ok: bool
+
+
+class CrossvalReport(NamedTuple):
+    n_joints: int
+    samples: int
+    alpha_range: float   # rad
+    seed: int
+    rows: list
+
+    @property
+    def ok(self) -> bool:
+        return all(r.ok for r in self.rows)
+
+    def to_dict(self) -> dict:
+        return {"n_joints": self.n_joints, "samples": self.samples, "alpha_range_deg": math.degrees(self.alpha_range),
+                "seed": self.seed, "ok": self.ok, "rows": [r._asdict() for r in self.rows]}
+
+
+def _dense_ten_J(model, data, rows) -> np.ndarray:
+    out = np.zeros((len(rows), model.nv))
+    for k, t in enumerate(rows):
+        a, nnz = model.ten_J_rowadr[t], model.ten_J_rownnz[t]
+        out[k, model.ten_J_colind[a:a + nnz]] = data.ten_J[a:a + nnz]
+    return out
+
+
+def _velocity_map(model, data, ix, helper_tendons) -> np.ndarray:
+    """J = dq/dalpha (nv, N) from MuJoCo's constraint Jacobians at the current pose."""
+    import mujoco
+
+    n = ix.n_joints
+    nv = model.nv
+    rows = []
+    jp1, jp2 = np.zeros((3, nv)), np.zeros((3, nv))
+    for s1, s2 in ix.loop_sites:
+        mujoco.mj_jacSite(model, data, jp1, None, int(s1))
+        mujoco.mj_jacSite(model, data, jp2, None, int(s2))
+        rows.append(jp1 - jp2)                       # velocity of the gap: must vanish
+    rows.append(_dense_ten_J(model, data, helper_tendons))
+    sel = np.zeros((n, nv))
+    sel[np.arange(n), ix.dof_A] = 1.0
+    sel[np.arange(n), ix.dof_D] = 1.0
+    held = np.zeros((n + 1, nv))
+    held[np.arange(n + 1), ix.dof_motor] = 1.0
+    A = np.vstack(rows + [sel, held])
+    rhs = np.zeros((A.shape[0], n))
+    rhs[A.shape[0] - (2 * n + 1): A.shape[0] - (n + 1)] = np.eye(n)
+    J, *_ = np.linalg.lstsq(A, rhs, rcond=None)
+    return J
+
+
+def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range: float = math.radians(60),
+             progress: bool = False) -> CrossvalReport:
+    """Compare MuJoCo and the analytic model at ``samples`` random poses (see module docstring)."""
+    import mujoco
+
+    if int(samples) != samples or samples < 1:
+        raise ValueError(f"samples: must be a positive integer, got {samples!r}")
+    if not (0 < alpha_range < params.geometry.alpha_max):
+        raise ValueError(f"alpha_range: must be in (0, alpha_max = {params.geometry.alpha_max:.4g}) rad, "
+                         f"got {alpha_range!r}")
+    n = params.n_joints
+    model, _ = build_model(params)
+    ix = model_index(model)
+    # Bar bodies only: helpers and motors get no mass; the helpers keep their small rotary
+    # inertia (a zero one would make M_q singular) and its exact share is removed below.
+    model.body_mass[ix.other_bodies] = 0.0
+    helper_bodies = ix.other_bodies[: n - 1]
+    helper_tendons = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"j{i}_helper_lock")
+                      for i in range(1, n)]
+    data = mujoco.MjData(model)
+
+    def place(alpha):
+        pq = pose_qpos(alpha, params)
+        data.qpos[:] = 0.0
+        data.qvel[:] = 0.0
+        data.qpos[ix.qpos_A], data.qpos[ix.qpos_B], data.qpos[ix.qpos_D] = pq.q_A, pq.q_B, pq.q_D
+        data.qpos[ix.qpos_helper] = pq.q_helper
+        mujoco.mj_fwdPosition(model, data)
+        mujoco.mj_fwdVelocity(model, data)
+        return pq
+
+    place(np.zeros(n))
+    l0 = data.ten_length[ix.cable_tendon].copy()
+    rng = np.random.default_rng(seed)
+    alphas = rng.uniform(-alpha_range, alpha_range, (int(samples), n))
+    errs = {q: [0.0, 0.0] for q in THRESHOLDS}
+
+    def record(q, mj, an):
+        ab = float(np.max(np.abs(mj - an)))
+        scale = float(np.max(np.abs(an)))
+        rel = ab / scale if scale > 0 else (0.0 if ab == 0 else math.inf)
+        errs[q][0] = max(errs[q][0], ab)
+        errs[q][1] = max(errs[q][1], rel)
+
+    it = alphas
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(alphas, desc=f"crossval N={n}", unit="pose")
+    Mq = np.zeros((model.nv, model.nv))
+    jr = np.zeros((3, model.nv))
+    for alpha in it:
+        pq = place(alpha)
+        record("lengths", data.ten_length[ix.cable_tendon] - l0, cable_lengths(alpha, params))
+        gaps = data.site_xpos[ix.loop_sites[:, 0]] - data.site_xpos[ix.loop_sites[:, 1]]
+        record("loop gap", np.linalg.norm(gaps, axis=1), np.zeros(n))
+        J = _velocity_map(model, data, ix, helper_tendons)
+        closed = np.zeros_like(J)
+        closed[ix.dof_A, np.arange(n)] = pq.dq_A
+        closed[ix.dof_B, np.arange(n)] = pq.dq_B
+        closed[ix.dof_D, np.arange(n)] = pq.dq_D
+        closed[ix.dof_helper, np.arange(n - 1)] = pq.dq_helper
+        record("dq/dalpha", J, closed)
+        tenJ = _dense_ten_J(model, data, ix.cable_tendon)
+        record("Z", -(tenJ @ J).T, transmission_matrix(alpha, params))
+        mujoco.mj_fullM(model, data, Mq)
+        M_mj = J.T @ Mq @ J
+        for b in helper_bodies:
+            mujoco.mj_jacBody(model, data, None, jr, int(b))
+            w = jr[2] @ J                                # helper's angular velocity per alpha_dot
+            M_mj -= model.body_inertia[b, 2] * np.outer(w, w)
+        record("M", M_mj, mass_matrix(alpha, params, motors=False))
+        record("g", J.T @ (data.qfrc_bias - data.qfrc_spring), gravity_spring_torque(alpha, params))
+    rows = []
+    for q, (kind, thr) in THRESHOLDS.items():
+        ab, rel = errs[q]
+        val = ab if kind == "abs" else rel
+        rows.append(Row(q, ab, rel, kind, thr, bool(val <= thr)))
+    return CrossvalReport(n, int(samples), float(alpha_range), int(seed), rows)
+
+
+def format_table(report: CrossvalReport) -> str:
+    """The report as a fixed-width table (one line per quantity)."""
+    head = (f"cross-validation MuJoCo vs analytic: N = {report.n_joints}, {report.samples} random poses in "
+            f"[-{math.degrees(report.alpha_range):g}, {math.degrees(report.alpha_range):g}] deg^N, seed {report.seed}")
+    lines = [head, f"{'quantity':<10} {'max abs':>11} {'max rel':>11}  {'threshold':<14} result"]
+    for r in report.rows:
+        rel = "-" if r.quantity in ("lengths", "loop gap") else f"{r.max_rel:.3e}"
+        lines.append(f"{r.quantity:<10} {r.max_abs:>11.3e} {rel:>11}  {r.kind + ' ' + format(r.threshold, '.0e'):<14} "
+                     f"{'ok' if r.ok else 'FAIL'}")
+    lines.append("all within thresholds" if report.ok else "SOME QUANTITIES EXCEED THEIR THRESHOLDS")
+    return "\n".join(lines)
+
+
+def write_json(report: CrossvalReport, path) -> None:
+    atomic_write_bytes(path, (json.dumps(report.to_dict(), indent=2) + "\n").encode())
