@@ -109,3 +109,39 @@ def simulated_run(params, duration: float = 0.6, seed: int = 0) -> dict:
         "truth": {"t": t, "alpha": st.alpha, "alpha_dot": st.alpha_dot, "tension": tension, "elongation": x},
         "_theta_true": st.theta,
     }
+
+
+def plant_run(path, seconds: float = 1.0, *, params=None, effects=None, seed: int = 0, alpha0=(0.05, -0.03, 0.02)):
+    """An open-loop run of the MuJoCo plant with smooth antagonistic forces, logged with the
+    plant's run info (what replay needs).  Returns the plant."""
+    from neck_sim.plant import Plant
+    from neck_sim.replay import plant_run_info
+
+    plant = Plant(params, effects, seed=seed)
+    n = plant.n_joints
+    plant.reset(alpha0=np.asarray(alpha0[:n], dtype=float))
+    rng = np.random.default_rng(seed + 1)
+    amp, freq, phase = rng.uniform(6, 12, n + 1), rng.uniform(0.8, 1.6, n + 1), rng.uniform(0, 2 * np.pi, n + 1)
+    steps = int(round(seconds * plant.params.control.rate_hz))
+    with LogWriter(path, plant.params, mjcf_xml=plant.xml, run_info=plant_run_info(plant)) as w:
+        for _ in range(steps):
+            t = plant.time
+            force = 28.0 + amp * np.sin(2 * np.pi * freq * t + phase)
+            theta, truth = plant.encoders(), plant.truth()
+            plant.step(force)
+            w.motors(t, theta, force)
+            w.truth(t, truth.alpha, truth.alpha_dot, truth.tension, truth.elongation)
+            frame = plant.camera_frame()
+            if frame is not None:
+                w.camera(*frame)
+    return plant
+
+
+def log_arrays(log) -> dict:
+    """Per-topic arrays of a Log in the layout of ``synthetic_arrays`` (topics present only)."""
+    out = {}
+    for topic in ("motors", "camera", "reference", "estimate", "truth"):
+        samples = getattr(log, topic)
+        if samples is not None:
+            out[topic] = {k: np.array(v) for k, v in vars(samples).items()}
+    return out

@@ -1,0 +1,170 @@
+"""Check a simulated log's truth against the analytic model (``neck-sim check``).
+
+From ``/neck/truth`` (and the encoders of ``/neck/motors`` at the same instants) three relations
+of the paper's model are recomputed with :mod:`neck_sim.analytic`:
+
+1. ``cable lengths``: the logged elongation against x_c = l_c(alpha) - l_c0 + (r_d/R) theta
+   (corrected eq 27; plus the ``pretension`` offset when the plant had that effect).
+   Tolerance 0.2 mm + half an encoder count along the cable ((r_d/R) pi/counts, 1.2 um): theta
+   is the quantised encoder reading, and MuJoCo's loop closures and helper constraints are soft
+   (the design notes keep their gaps under 0.1 mm; measured: up to 0.06 mm in a closed-loop run,
+   0.1 mm in a violent open-loop run, growing about 1 um per N of tension).
+2. ``joint torques``: Z(alpha) t against M_m(alpha) alpha_ddot + c_m(alpha, alpha_dot) + g(alpha)
+   (eq 30 with tau = Z t), alpha_ddot from central differences of the logged alpha_dot.  Both
+   sides are compared as 20 ms moving averages: a moving average of a central difference is a
+   change of momentum over the window, exact up to the variation of M_m, so the comparison
+   needs no filter.  Tolerance per joint 0.005 N m + 3 % of the largest |Z t| of that joint
+   (measured: 0.2 % in a closed-loop run, 2 % in a violent open-loop run with slack cables).
+3. ``elongation sign``: tension-only cables (eq 54) pull only when stretched: no sample may have
+   tension > 0 with elongation <= 0 (tolerance 0).  With rigid cables the elongation must stay
+   within the tolerance of relation 1 instead.
+
+The model's constants are the plant's (the ``run`` record's ``plant_params`` with its effects
+applied) when the log has them, else the nominal ``neck`` record.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from neck_sim.analytic import cable_lengths, linkage_dynamics, transmission_matrix
+from neck_sim.effects import Effects
+from neck_sim.logs import Log, read_log
+from neck_sim.params import NeckParams, from_dict
+
+__all__ = ["Relation", "CheckResult", "check_log", "LENGTH_TOLERANCE", "TORQUE_TOLERANCE_ABS",
+           "TORQUE_TOLERANCE_REL", "TORQUE_WINDOW"]
+
+LENGTH_TOLERANCE = 2e-4          # m, plus half an encoder count along the cable
+TORQUE_TOLERANCE_ABS = 0.005     # N m
+TORQUE_TOLERANCE_REL = 0.03      # of the joint's largest |Z t|
+TORQUE_WINDOW = 0.02             # s, moving-average window of relation 2
+
+
+@dataclass(frozen=True)
+class Relation:
+    """One checked relation: the largest disagreement, where it is, and its tolerance."""
+
+    name: str
+    description: str
+    unit: str
+    max_error: float           # largest |disagreement| (for relation 2: largest error / tolerance x tol)
+    tolerance: float
+    t: float                   # time of the largest disagreement (s)
+    index: int                 # cable or joint index (0-based) of it
+    violations: int            # samples over tolerance
+    samples: int
+
+    @property
+    def passed(self) -> bool:
+        return self.violations == 0
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    relations: tuple[Relation, ...]
+    params_source: str
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.relations)
+
+    def table(self) -> str:
+        rows = [("relation", "max disagreement", "tolerance", "at t (s)", "where", "samples over", "verdict")]
+        for r in self.relations:
+            where = ("cable " if r.name != "joint torques" else "joint ") + str(r.index + 1)
+            rows.append((r.name, f"{r.max_error:.3g} {r.unit}", f"{r.tolerance:.3g} {r.unit}", f"{r.t:.3f}", where,
+                         f"{r.violations}/{r.samples}", "ok" if r.passed else "FAIL"))
+        widths = [max(len(row[c]) for row in rows) for c in range(len(rows[0]))]
+        lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
+        return "\n".join([lines[0], "-" * len(lines[0])] + lines[1:])
+
+    def as_dict(self) -> dict:
+        return {"passed": self.passed, "params_source": self.params_source,
+                "relations": [dict(asdict(r), passed=r.passed) for r in self.relations]}
+
+
+def _run_json(log: Log, key: str):
+    raw = log.run_info.get(key)
+    if raw is None:
+        return None
+    try:
+        return json.loads(raw)
+    except json.JSONDecodeError:
+        return raw
+
+
+def _model(log: Log) -> tuple[NeckParams, Effects, bool, str]:
+    recorded = _run_json(log, "plant_params")
+    effects = _run_json(log, "effects")
+    effects = Effects.from_dict(effects) if isinstance(effects, dict) else Effects()
+    rigid = bool(_run_json(log, "rigid_cables") is True)
+    if isinstance(recorded, dict):
+        return effects.true_params(from_dict(recorded)), effects, rigid, "plant parameters of the run record"
+    return log.params, effects, rigid, "nominal constants of the neck record (the run record has no plant_params)"
+
+
+def _worst(err: np.ndarray, tol, t: np.ndarray, name, description, unit, tol_value) -> Relation:
+    """Relation from per-sample errors (T, K) and tolerance broadcastable to it."""
+    ratio = np.abs(err) / tol
+    flat = int(np.argmax(ratio)) if err.size else 0
+    i, j = divmod(flat, err.shape[1]) if err.size else (0, 0)
+    return Relation(name, description, unit, float(np.abs(err).flat[flat]) if err.size else 0.0, float(tol_value),
+                    float(t[i]) if err.size else math.nan, j, int((ratio > 1).sum()), int(err.shape[0]))
+
+
+def check_log(log: Log | str) -> CheckResult:
+    """Recompute the three relations from the truth topics; see the module docstring."""
+    if not isinstance(log, Log):
+        log = read_log(log, topics=("motors", "truth"), require=("motors", "truth"))
+    if log.truth is None or len(log.truth.t) == 0:
+        raise ValueError(f"{log.path}: no /neck/truth samples: check needs a simulated log")
+    params, effects, rigid, source = _model(log)
+    tr, mo = log.truth, log.motors
+    common, it, im = np.intersect1d(np.round(tr.t * 1e9).astype(np.int64), np.round(mo.t * 1e9).astype(np.int64),
+                                    return_indices=True)
+    if len(common) < 3:
+        raise ValueError(f"{log.path}: /neck/truth and /neck/motors share {len(common)} sample times; need >= 3")
+    t = tr.t[it]
+    alpha, alpha_dot = tr.alpha[it], tr.alpha_dot[it]
+    tension, x_log = tr.tension[it], tr.elongation[it]
+    theta = mo.theta[im]
+    act = params.actuation
+
+    # 1. cable lengths
+    ratio = act.r_d / act.R
+    x_model = cable_lengths(alpha, params) + ratio * theta + effects.elongation_offset(params.n_cables)
+    tol1 = LENGTH_TOLERANCE + ratio * params.sensors.encoder_resolution / 2
+    rel1 = _worst(x_log - x_model, tol1, t, "cable lengths",
+                  "elongation vs l_c(alpha) - l_c0 + (r_d/R) theta", "m", tol1)
+
+    # 2. joint torques, as moving averages of both sides (changes of momentum over the window)
+    alpha_ddot = np.gradient(alpha_dot, t, axis=0)
+    lk = linkage_dynamics(alpha, alpha_dot, params)
+    z_t = np.einsum("tij,tj->ti", transmission_matrix(alpha, params), tension)
+    residual = (z_t - (np.einsum("tij,tj->ti", lk.M, alpha_ddot) + lk.c + lk.g))[1:-1]
+    dt = float(np.median(np.diff(t)))
+    w = max(1, min(len(residual), int(round(TORQUE_WINDOW / dt)) + 1))
+    kernel = np.ones(w) / w
+    smooth = np.stack([np.convolve(residual[:, j], kernel, mode="valid") for j in range(residual.shape[1])], 1)
+    t_mid = t[1:-1][w // 2: w // 2 + len(smooth)]
+    tol2 = TORQUE_TOLERANCE_ABS + TORQUE_TOLERANCE_REL * np.abs(z_t).max(axis=0)
+    rel2 = _worst(smooth, tol2, t_mid, "joint torques",
+                  f"Z t vs M_m alpha_ddot + c_m + g ({w}-sample means)", "N m", 0.0)
+    rel2 = Relation(**{**asdict(rel2), "tolerance": float(tol2[rel2.index])})
+
+    # 3. elongation sign
+    if rigid:
+        rel3 = _worst(x_log, tol1, t, "elongation sign", "rigid cables: elongation stays zero", "m", tol1)
+    else:
+        bad = (tension > 0) & (x_log <= 0)
+        deficit = np.where(bad, -x_log, 0.0)
+        flat = int(np.argmax(np.where(bad, 1.0 + deficit, 0.0)))
+        i, j = divmod(flat, deficit.shape[1])
+        rel3 = Relation("elongation sign", "tension > 0 only when elongation > 0", "m", float(deficit.flat[flat]),
+                        0.0, float(t[i]), j, int(bad.sum()), len(t))
+    return CheckResult((rel1, rel2, rel3), source)

@@ -1,0 +1,210 @@
+"""Re-simulate a logged run open loop and measure how far the new run drifts (``neck-sim replay``).
+
+The plant is rebuilt from the log's ``run`` record (plant parameters, effects, seed, timestep,
+rigid cables: what :func:`plant_run_info` stores; nominal ``neck`` constants and no effects when
+the record lacks them), reset to the logged initial pose (``/neck/truth`` alpha at the first
+sample, else the first camera frame), and driven with the logged commanded forces, one control
+period per ``/neck/motors`` sample.  Before each step the replayed encoders and true joint angles
+are compared with the logged ones at the same time: an identical plant reproduces the run to
+floating-point tolerance; a changed plant parameter shows up as a measured drift.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from neck_sim.effects import Effects
+from neck_sim.logs import Log, LogWriter, read_log
+from neck_sim.params import NeckParams, from_dict, to_dict
+
+__all__ = ["plant_run_info", "plant_from_log", "replay", "ReplayResult"]
+
+
+def plant_run_info(plant) -> dict:
+    """Run metadata that lets :func:`replay` rebuild ``plant`` exactly (pass it to LogWriter's
+    ``run_info``): seed, effects, the plant's parameters, timestep, rigid cables."""
+    return {"seed": plant.seed, "effects": plant.effects.to_dict(), "plant_params": to_dict(plant.params),
+            "timestep": plant.timestep, "rigid_cables": bool(plant.rigid_cables)}
+
+
+def _run_value(log: Log, key: str):
+    raw = log.run_info.get(key)
+    if raw is None:
+        return None
+    try:
+        return json.loads(raw)
+    except json.JSONDecodeError:
+        return raw
+
+
+def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effects | None = None,
+                   seed: int | None = None, changes: dict | None = None, backend: str | None = None):
+    """The plant that produced ``log`` (from its ``run`` record), optionally changed.
+
+    ``params``/``effects``/``seed`` replace the recorded ones; ``changes`` are dotted parameter
+    changes applied on top (``{"friction.c_s": 0.6}``).  Returns (plant, notes) where notes list
+    what had to be assumed.
+    """
+    from neck_sim.plant import Plant
+
+    notes = []
+    if params is None:
+        recorded = _run_value(log, "plant_params")
+        if recorded is None:
+            params = log.params
+            notes.append("run record has no plant_params: using the nominal constants of the neck record")
+        else:
+            params = from_dict(recorded)
+    if changes:
+        params = params.replace(**changes)
+    if effects is None:
+        recorded = _run_value(log, "effects")
+        if recorded is None:
+            effects = Effects()
+            notes.append("run record has no effects: assuming none")
+        else:
+            effects = Effects.from_dict(recorded)
+    if seed is None:
+        recorded = _run_value(log, "seed")
+        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool):
+            seed = int(recorded)
+        else:
+            seed = 0
+            notes.append(f"run record seed = {recorded!r}: using seed 0 (it only changes the camera noise)")
+    timestep = _run_value(log, "timestep")
+    rigid = bool(_run_value(log, "rigid_cables") or False)
+    plant = Plant(params, effects, seed=seed, timestep=timestep, rigid_cables=rigid, backend=backend)
+    return plant, notes
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """Replayed vs logged signals at the logged motor times (T samples).
+
+    theta/theta_log (T, N+1) rad: encoders; alpha/alpha_log (T, N) rad: true joint angles
+    (alpha_log is None when the log has no truth).  ``notes``: assumptions made.
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    theta_log: np.ndarray
+    alpha: np.ndarray
+    alpha_log: np.ndarray | None
+    encoder_resolution: float
+    notes: tuple[str, ...]
+    output: str | None
+
+    @property
+    def theta_drift(self) -> np.ndarray:
+        return self.theta - self.theta_log
+
+    @property
+    def alpha_drift(self) -> np.ndarray | None:
+        return None if self.alpha_log is None else self.alpha - self.alpha_log
+
+    def max_theta_drift(self) -> np.ndarray:
+        """Per motor, max |theta - theta_log| (rad)."""
+        return np.abs(self.theta_drift).max(axis=0)
+
+    def max_alpha_drift(self) -> np.ndarray | None:
+        """Per joint, max |alpha - alpha_log| (rad), None without truth."""
+        d = self.alpha_drift
+        return None if d is None else np.abs(d).max(axis=0)
+
+    def table(self) -> str:
+        rows = [("quantity", "max |drift|", "rms", "at end", "max at t (s)")]
+        d = self.theta_drift
+        res = self.encoder_resolution
+        for j in range(d.shape[1]):
+            i = int(np.abs(d[:, j]).argmax())
+            rows.append((f"theta{j + 1} (encoder counts)", f"{np.abs(d[:, j]).max() / res:.3g}",
+                         f"{np.sqrt(np.mean(d[:, j] ** 2)) / res:.3g}", f"{d[-1, j] / res:.3g}", f"{self.t[i]:.3f}"))
+        a = self.alpha_drift
+        if a is not None:
+            for j in range(a.shape[1]):
+                i = int(np.abs(a[:, j]).argmax())
+                rows.append((f"alpha{j + 1} (deg)", f"{math.degrees(np.abs(a[:, j]).max()):.3g}",
+                             f"{math.degrees(np.sqrt(np.mean(a[:, j] ** 2))):.3g}",
+                             f"{math.degrees(a[-1, j]):.3g}", f"{self.t[i]:.3f}"))
+        widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+        lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w) for c, (cell, w) in enumerate(zip(r, widths)))
+                 for r in rows]
+        return "\n".join([lines[0], "-" * len(lines[0])] + lines[1:])
+
+
+def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, effects: Effects | None = None,
+           seed: int | None = None, changes: dict | None = None, output=None, progress: bool = False,
+           backend: str | None = None) -> ReplayResult:
+    """Re-run the logged commanded forces open loop on the (possibly changed) plant.
+
+    ``output``: path of an MCAP of the replay (motors with the replayed encoders and the logged
+    forces, camera, truth).  Raises ValueError when the log cannot be replayed (no motors, motor
+    samples not at the plant's control period, no initial pose).
+    """
+    if not isinstance(log, Log):
+        log = read_log(log, topics=("motors", "truth", "camera"))
+    plant, notes = plant_from_log(log, params=params, effects=effects, seed=seed, changes=changes, backend=backend)
+    m = log.motors
+    if len(m.t) < 2:
+        raise ValueError(f"{log.path}: /neck/motors has {len(m.t)} sample(s): nothing to replay")
+    period = plant.period
+    steps = np.diff(m.t)
+    bad = np.flatnonzero(np.abs(steps - period) > 1e-6 * period + 1e-9)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{log.path}: /neck/motors samples must be one control period ({period} s) apart to be "
+                         f"replayed; t = {m.t[i]!r} -> {m.t[i + 1]!r} s")
+    if abs(m.t[0]) > 1e-9:
+        notes.append(f"log starts at t = {m.t[0]:.6f} s: the replay starts there at plant time 0")
+    if log.truth is not None and len(log.truth.t):
+        alpha0 = log.truth.alpha[0]
+        alpha_log = _at_times(log.truth.t, log.truth.alpha, m.t)
+    elif log.camera is not None and len(log.camera.t):
+        alpha0 = log.camera.alpha[0]
+        alpha_log = None
+        notes.append("no /neck/truth: initial pose from the first camera frame, alpha drift not measured")
+    else:
+        raise ValueError(f"{log.path}: no /neck/truth or /neck/camera to take the initial pose from")
+    plant.reset(alpha0=alpha0)
+
+    n_steps = len(m.t)
+    theta = np.empty_like(m.theta)
+    alpha = np.empty((n_steps, plant.n_joints))
+    writer = None if output is None else LogWriter(
+        output, log.params, mjcf_xml=plant.xml,
+        run_info={"replay_of": os.path.abspath(log.path), **plant_run_info(plant)})
+    try:
+        from tqdm.auto import tqdm
+        for k in tqdm(range(n_steps), desc="replay", unit="step", disable=not progress, mininterval=0.5):
+            t = m.t[0] + plant.time
+            theta[k] = plant.encoders()
+            truth = plant.truth()
+            alpha[k] = truth.alpha
+            plant.step(m.force[k])
+            if writer is not None:
+                writer.motors(t, theta[k], m.force[k])
+                writer.truth(t, truth.alpha, truth.alpha_dot, truth.tension, truth.elongation)
+                frame = plant.camera_frame()
+                if frame is not None:
+                    writer.camera(m.t[0] + frame[0], frame[1])
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    if writer is not None:
+        writer.close()
+    return ReplayResult(m.t, theta, m.theta, alpha, alpha_log, plant.params.sensors.encoder_resolution,
+                        tuple(notes), None if output is None else os.fspath(output))
+
+
+def _at_times(t_src: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    """values at the times t (exact sample matches within 1 us), None when they do not all match."""
+    idx = np.clip(np.searchsorted(t_src, t - 1e-6), 0, len(t_src) - 1)
+    if not np.all(np.abs(t_src[idx] - t) <= 1e-6):
+        return None
+    return values[idx]
