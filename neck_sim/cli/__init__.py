@@ -19,6 +19,8 @@ COMMANDS: dict[str, str] = {
     "pulleys": "pulleys_cmd",
     "crossval": "crossval_cmd",
     "import": "import_cmd",
+    "check": "check_cmd",
+    "replay": "replay_cmd",
     "identify": "identify_cmd",
 }
 
