@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from neck_sim.analytic.cables import _segments, transmission_matrix
-from neck_sim.analytic.geometry import check_alpha
+from neck_sim.analytic.geometry import check_alpha, check_cables
 from neck_sim.params import NeckParams
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "estimate_alpha_pinv"]
@@ -19,15 +19,6 @@ __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "e
 
 class UnreachableError(ValueError):
     """Motor angles that no pose within the joint range explains."""
-
-
-def _check_cables(arr, n_cables: int, name: str) -> np.ndarray:
-    a = np.asarray(arr, dtype=float)
-    if a.ndim == 0 or a.shape[-1] != n_cables:
-        raise ValueError(f"{name}: expected shape (..., {n_cables}) (one value per cable), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or infinity")
-    return a
 
 
 def _right_segments(alpha: np.ndarray, params: NeckParams):
@@ -49,8 +40,8 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
     """
     n = params.n_joints
     act = params.actuation
-    th = _check_cables(theta, n + 1, "theta")
-    x = np.zeros_like(th) if elongation is None else _check_cables(elongation, n + 1, "elongation")
+    th = check_cables(theta, n + 1, "theta")
+    x = np.zeros_like(th) if elongation is None else check_cables(elongation, n + 1, "elongation")
     th, x = np.broadcast_arrays(th, x)
     target = x - (act.r_d / act.R) * th                   # l_c - l_c0 per cable
     amax = params.geometry.alpha_max
@@ -95,10 +86,10 @@ def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) ->
     n = params.n_joints
     act = params.actuation
     a = check_alpha(alpha_hat, n, "alpha_hat")
-    dth = _check_cables(d_theta, n + 1, "d_theta")
+    dth = check_cables(d_theta, n + 1, "d_theta")
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
-        rhs = rhs - _check_cables(d_elongation, n + 1, "d_elongation")
+        rhs = rhs - check_cables(d_elongation, n + 1, "d_elongation")
     Z = transmission_matrix(a, params)
     zz = Z @ np.swapaxes(Z, -1, -2)
     return np.linalg.solve(zz, np.einsum("...ij,...j->...i", Z, rhs)[..., None])[..., 0]
@@ -111,10 +102,10 @@ def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None)
     the first sample (default straight).  Vectorised over the leading batch axes, sequential in T.
     """
     n = params.n_joints
-    th = _check_cables(theta, n + 1, "theta")
+    th = check_cables(theta, n + 1, "theta")
     if th.ndim < 2:
         raise ValueError(f"theta: expected a time series of shape (..., T, {n + 1}), got {th.shape}")
-    x = None if elongation is None else _check_cables(elongation, n + 1, "elongation")
+    x = None if elongation is None else check_cables(elongation, n + 1, "elongation")
     if x is not None and x.shape[-2] != th.shape[-2]:
         raise ValueError(f"elongation: {x.shape[-2]} samples but theta has {th.shape[-2]}")
     a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_alpha(alpha0, n, "alpha0")

@@ -22,7 +22,7 @@ import numpy as np
 from neck_sim.params import NeckParams
 
 __all__ = ["SideLengths", "side_lengths", "joint_corners", "psi", "Kinematics",
-           "forward_kinematics", "rotation", "check_alpha"]
+           "forward_kinematics", "rotation", "check_alpha", "check_cables"]
 
 
 class SideLengths(NamedTuple):
@@ -36,14 +36,23 @@ class SideLengths(NamedTuple):
     ddl_r: np.ndarray
 
 
-def check_alpha(alpha, n_joints: int, name: str = "alpha") -> np.ndarray:
-    """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem."""
-    a = np.asarray(alpha, dtype=float)
-    if a.ndim == 0 or a.shape[-1] != n_joints:
-        raise ValueError(f"{name}: expected shape (..., {n_joints}) (one angle per X-joint), got {a.shape}")
+def _check_last_axis(arr, size: int, name: str, what: str) -> np.ndarray:
+    a = np.asarray(arr, dtype=float)
+    if a.ndim == 0 or a.shape[-1] != size:
+        raise ValueError(f"{name}: expected shape (..., {size}) ({what}), got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name}: contains NaN or infinity")
     return a
+
+
+def check_alpha(alpha, n_joints: int, name: str = "alpha") -> np.ndarray:
+    """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem."""
+    return _check_last_axis(alpha, n_joints, name, "one angle per X-joint")
+
+
+def check_cables(values, n_cables: int, name: str) -> np.ndarray:
+    """Return a per-cable array of shape (..., n_cables) or raise naming the problem."""
+    return _check_last_axis(values, n_cables, name, "one value per cable")
 
 
 def side_lengths(alpha, params: NeckParams) -> SideLengths:
