@@ -19,17 +19,9 @@ import time
 import numpy as np
 from mcap.reader import make_reader
 
+from bench_analytic import best_of  # benchmarks/ is on sys.path when this runs as a script
 from neck_sim.logs import LogWriter, read_log
 from neck_sim.params import default_params
-
-
-def best_of(fun, repeat: int) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fun()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def write_run(path: str, seconds: float, n_joints: int = 3) -> int:

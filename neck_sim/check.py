@@ -25,7 +25,6 @@ applied) when the log has them, else the nominal ``neck`` record.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass
 
@@ -88,21 +87,11 @@ class CheckResult:
                 "relations": [dict(asdict(r), passed=r.passed) for r in self.relations]}
 
 
-def _run_json(log: Log, key: str):
-    raw = log.run_info.get(key)
-    if raw is None:
-        return None
-    try:
-        return json.loads(raw)
-    except json.JSONDecodeError:
-        return raw
-
-
 def _model(log: Log) -> tuple[NeckParams, Effects, bool, str]:
-    recorded = _run_json(log, "plant_params")
-    effects = _run_json(log, "effects")
+    recorded = log.run_value("plant_params")
+    effects = log.run_value("effects")
     effects = Effects.from_dict(effects) if isinstance(effects, dict) else Effects()
-    rigid = bool(_run_json(log, "rigid_cables") is True)
+    rigid = bool(log.run_value("rigid_cables") is True)
     if isinstance(recorded, dict):
         return effects.true_params(from_dict(recorded)), effects, rigid, "plant parameters of the run record"
     return log.params, effects, rigid, "nominal constants of the neck record (the run record has no plant_params)"

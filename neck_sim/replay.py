@@ -11,7 +11,7 @@ floating-point tolerance; a changed plant parameter shows up as a measured drift
 
 from __future__ import annotations
 
-import json
+import contextlib
 import math
 import os
 from dataclasses import dataclass
@@ -32,16 +32,6 @@ def plant_run_info(plant) -> dict:
             "timestep": plant.timestep, "rigid_cables": bool(plant.rigid_cables)}
 
 
-def _run_value(log: Log, key: str):
-    raw = log.run_info.get(key)
-    if raw is None:
-        return None
-    try:
-        return json.loads(raw)
-    except json.JSONDecodeError:
-        return raw
-
-
 def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effects | None = None,
                    seed: int | None = None, changes: dict | None = None, backend: str | None = None):
     """The plant that produced ``log`` (from its ``run`` record), optionally changed.
@@ -54,7 +44,7 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
 
     notes = []
     if params is None:
-        recorded = _run_value(log, "plant_params")
+        recorded = log.run_value("plant_params")
         if recorded is None:
             params = log.params
             notes.append("run record has no plant_params: using the nominal constants of the neck record")
@@ -63,21 +53,21 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
     if changes:
         params = params.replace(**changes)
     if effects is None:
-        recorded = _run_value(log, "effects")
+        recorded = log.run_value("effects")
         if recorded is None:
             effects = Effects()
             notes.append("run record has no effects: assuming none")
         else:
             effects = Effects.from_dict(recorded)
     if seed is None:
-        recorded = _run_value(log, "seed")
+        recorded = log.run_value("seed")
         if isinstance(recorded, (int, float)) and not isinstance(recorded, bool):
             seed = int(recorded)
         else:
             seed = 0
             notes.append(f"run record seed = {recorded!r}: using seed 0 (it only changes the camera noise)")
-    timestep = _run_value(log, "timestep")
-    rigid = bool(_run_value(log, "rigid_cables") or False)
+    timestep = log.run_value("timestep")
+    rigid = bool(log.run_value("rigid_cables") or False)
     plant = Plant(params, effects, seed=seed, timestep=timestep, rigid_cables=rigid, backend=backend)
     return plant, notes
 
@@ -175,11 +165,11 @@ def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, ef
     n_steps = len(m.t)
     theta = np.empty_like(m.theta)
     alpha = np.empty((n_steps, plant.n_joints))
-    writer = None if output is None else LogWriter(
-        output, log.params, mjcf_xml=plant.xml,
-        run_info={"replay_of": os.path.abspath(log.path), **plant_run_info(plant)})
-    try:
-        from tqdm.auto import tqdm
+    recording = contextlib.nullcontext() if output is None else LogWriter(
+        output, log.params, mjcf_xml=plant.xml, run_info={"replay_of": os.path.abspath(log.path),
+                                                          **plant_run_info(plant)})
+    from tqdm.auto import tqdm
+    with recording as writer:
         for k in tqdm(range(n_steps), desc="replay", unit="step", disable=not progress, mininterval=0.5):
             t = m.t[0] + plant.time
             theta[k] = plant.encoders()
@@ -192,12 +182,6 @@ def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, ef
                 frame = plant.camera_frame()
                 if frame is not None:
                     writer.camera(m.t[0] + frame[0], frame[1])
-    except BaseException:
-        if writer is not None:
-            writer.abort()
-        raise
-    if writer is not None:
-        writer.close()
     return ReplayResult(m.t, theta, m.theta, alpha, alpha_log, plant.params.sensors.encoder_resolution,
                         tuple(notes), None if output is None else os.fspath(output))
 

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from test_logs_fixtures import log_arrays, plant_run, simulated_run, write_arrays
+from test_logs_fixtures import log_arrays, plant_run, simulated_run, synthetic_arrays, write_arrays
 
 from neck_sim.check import check_log
 from neck_sim.cli import main
@@ -102,7 +102,7 @@ def test_check_command(plant_log, tmp_path, capsys):
 
 def test_check_needs_truth(tmp_path, capsys):
     p = default_params(3)
-    arrays = simulated_run(p, duration=0.02)
+    arrays = synthetic_arrays(p, seconds=0.05)
     write_arrays(tmp_path / "m.mcap", p, {"motors": arrays["motors"]})
     assert main(["check", str(tmp_path / "m.mcap")]) == 2
     assert "missing required topic /neck/truth" in capsys.readouterr().err

@@ -37,7 +37,8 @@ def written(tmp_path_factory):
     arrays = synthetic_arrays(params, seconds=2.0)
     path = tmp_path_factory.mktemp("logs") / "run.mcap"
     write_arrays(path, params, arrays, mjcf_xml="<mujoco model='neck'/>",
-                 run_info={"seed": 7, "effects": {"dry_friction": True}}, chunk_size=16 * 1024)
+                 run_info={"seed": 7, "effects": {"dry_friction": True}, "gains": np.array([1.5, 2.0]),
+                           "rate": np.float64(500.0)}, chunk_size=16 * 1024)
     return path, params, arrays
 
 
@@ -109,6 +110,7 @@ def test_run_record_has_versions_seed_and_command_line(written):
     assert run["mujoco_version"] == mujoco.__version__
     assert run["numpy_version"] == np.__version__
     assert run["seed"] == "7" and json.loads(run["effects"]) == {"dry_friction": True}
+    assert json.loads(run["gains"]) == [1.5, 2.0] and json.loads(run["rate"]) == 500.0
     assert json.loads(run["command_line"]) == sys.argv
     assert run["neck_sim_version"]
 
@@ -176,13 +178,17 @@ def test_topic_selection_and_required_topics(written):
         read_log(path, topics=("cameras",))
 
 
-def test_file_without_summary_is_read_by_scanning(tmp_path):
+@pytest.mark.parametrize("layout", ["no summary", "no chunks"])
+def test_file_without_index_is_read_by_scanning(tmp_path, layout):
     p = default_params(3)
     path = tmp_path / "nosummary.mcap"
     from mcap.writer import IndexType, Writer
     with open(path, "wb") as fh:
-        w = Writer(fh, index_types=IndexType.NONE, repeat_channels=False, repeat_schemas=False,
-                   use_statistics=False, use_summary_offsets=False)
+        if layout == "no summary":
+            w = Writer(fh, index_types=IndexType.NONE, repeat_channels=False, repeat_schemas=False,
+                       use_statistics=False, use_summary_offsets=False)
+        else:
+            w = Writer(fh, use_chunking=False)
         w.start()
         from neck_sim.logs import neck_metadata
         w.add_metadata("neck", neck_metadata(p))

@@ -14,7 +14,7 @@ topic               fields (SI)                                      who may rea
                     N, elongation [N+1] m
 =================== ================================================ ==============================
 
-A metadata record ``neck`` (strings) holds the nominal constants a experimenter knows; it never
+A metadata record ``neck`` (strings) holds the nominal constants the experimenter knows; it never
 holds friction or cable parameters.  ``NeckParams`` <-> ``neck`` record conversion lives here.
 """
 

@@ -113,6 +113,16 @@ class Log:
     def n_joints(self) -> int:
         return self.params.n_joints
 
+    def run_value(self, key: str):
+        """A ``run`` record value decoded from JSON (the raw string when it is not JSON; None if absent)."""
+        raw = self.run_info.get(key)
+        if raw is None:
+            return None
+        try:
+            return json.loads(raw)
+        except json.JSONDecodeError:
+            return raw
+
 
 def _to_ns(value: float | None, name: str) -> int | None:
     if value is None:
@@ -247,6 +257,8 @@ def _gather_u(arr: np.ndarray, offsets: np.ndarray, nbytes: int) -> np.ndarray:
 def _collect_indexed(fh, path, summary, ids: dict[int, str], start_ns, end_ns) -> dict | None:
     """topic -> (log_times, payloads) from the chunk and message indexes; None without them."""
     out: dict[str, tuple[list, list]] = {topic: ([], []) for topic in ids.values()}
+    if not summary.chunk_indexes:          # unchunked file: messages sit in the data section
+        return None
     chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
     for ci in chunks:
         if start_ns is not None and ci.message_end_time < start_ns:

@@ -49,8 +49,13 @@ def _run_record(run_info: dict | None) -> dict[str, str]:
            "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
            "seed": "none"}
     for key, value in (run_info or {}).items():
-        rec[str(key)] = value if isinstance(value, str) else json.dumps(value)
+        rec[str(key)] = value if isinstance(value, str) else json.dumps(value, default=_jsonable)
     return rec
+
+
+def _jsonable(value):
+    """numpy scalars/arrays as numbers/lists, anything else by its str()."""
+    return value.tolist() if hasattr(value, "tolist") else str(value)
 
 
 class LogWriter:
