@@ -76,7 +76,10 @@ class CheckResult:
         rows = [("relation", "max disagreement", "tolerance", "at t (s)", "where", "samples over", "verdict")]
         for r in self.relations:
             where = ("cable " if r.name != "joint torques" else "joint ") + str(r.index + 1)
-            rows.append((r.name, f"{r.max_error:.3g} {r.unit}", f"{r.tolerance:.3g} {r.unit}", f"{r.t:.3f}", where,
+            at = f"{r.t:.3f}"
+            if r.max_error == 0 and r.passed:
+                where = at = "-"
+            rows.append((r.name, f"{r.max_error:.3g} {r.unit}", f"{r.tolerance:.3g} {r.unit}", at, where,
                          f"{r.violations}/{r.samples}", "ok" if r.passed else "FAIL"))
         widths = [max(len(row[c]) for row in rows) for c in range(len(rows[0]))]
         lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
