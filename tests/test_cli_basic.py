@@ -26,3 +26,15 @@ def test_pulleys_json(tmp_path):
     assert main(["pulleys", "--samples", "2000", "--json", str(path)]) == 0
     data = json.loads(path.read_text())
     assert data["samples"] == 2000 and 0 < data["torque_rel_diff"] < 1
+
+
+def test_top_level_help_lists_every_command(capsys):
+    import pytest
+
+    from neck_sim.cli import COMMANDS
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for name in COMMANDS:
+        assert name in out

@@ -7,7 +7,7 @@ import json
 from neck_sim import params as P
 from neck_sim.pulley_study import pulley_effect
 
-HELP = "recompute the paper's pulley indicators (torque 16 %, eq 35 increments 13 %)"
+HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increments 13 percent)"
 
 
 def add_arguments(parser) -> None:
