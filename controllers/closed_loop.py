@@ -15,9 +15,9 @@ The metrics are the paper's (§7, Table 3), in degrees, averaged over every samp
   mean |alpha - alpha_d|;
 * estimation e_alpha = mean |alpha_hat - alpha_camera| at the camera frames (what the paper
   measures, Fig. 15; includes the camera's 1 deg noise) and mean |alpha_hat - alpha| (truth);
-* force range, samples with a slack cable (a true tension <= ``SLACK_TENSION``; the first sample,
-  taken before any force was applied to the unstretched cables, is not counted), samples with a
-  force clipped at f_max.
+* force range, samples with a slack cable (a true tension <= ``SLACK_TENSION``; the take-up of the
+  unstretched cables at the start, before every cable is first taut, is not counted: ``take_up``),
+  samples with a force clipped at f_max.
 """
 
 from __future__ import annotations
@@ -55,6 +55,7 @@ class Metrics:
     force_mean: float
     slack_samples: int                # samples with at least one slack cable
     slack_per_cable: tuple
+    take_up: float                    # s, time until every cable was first taut (not counted as slack)
     saturated_samples: int            # samples with at least one force clipped at f_max
     samples: int
     camera_frames: int
@@ -114,7 +115,11 @@ def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, cam
     else:
         cam_err = float("nan")
     slack = tension <= SLACK_TENSION
-    slack[:1] = False       # the plant starts with unstretched cables: t = 0 precedes the first command
+    # The plant starts with unstretched cables: the first milliseconds take the slack up.  Count
+    # slack samples only once every cable has been taut (from sample 1 if that never happens).
+    taut = np.flatnonzero(~slack.any(-1))
+    take_up = int(taut[0]) if taut.size else 1
+    slack[:take_up] = False
     return Metrics(
         tracking_error=float(deg(track.mean())),
         tracking_error_true=float(deg(np.abs(alpha - alpha_d).mean())),
@@ -127,6 +132,7 @@ def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, cam
         force_min=float(force.min()), force_max=float(force.max()), force_mean=float(force.mean()),
         slack_samples=int(slack.any(-1).sum()),
         slack_per_cable=tuple(int(x) for x in slack.sum(0)),
+        take_up=float(t[take_up] - t[0]) if len(t) > take_up else float("nan"),
         saturated_samples=int(saturated.any(-1).sum()),
         samples=int(len(t)), camera_frames=int(len(camera_t)),
         duration=float(t[-1] - t[0]) if len(t) else 0.0)

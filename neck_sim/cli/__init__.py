@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "check": "check_cmd",
     "replay": "replay_cmd",
     "identify": "identify_cmd",
+    "simulate": "simulate_cmd",
 }
 
 

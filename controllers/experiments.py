@@ -1,0 +1,130 @@
+"""The paper's closed-loop experiments on the simulated plant, with the paper's numbers beside them.
+
+* :func:`control_tests`: the three control laws of §6.3 on one trajectory (the §7 tests);
+* :func:`table3`: the law with and without pulleys in its model (r = 0 in the controller only)
+  on a rigid-cable plant and on the identified-cable plant (§5.6, Table 3);
+* :func:`format_control_table`, :func:`format_table3`: plain-text tables of measured vs paper.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+from typing import Callable, Mapping
+
+from controllers.closed_loop import RunResult, run_closed_loop
+from controllers.computed_torque import ComputedTorqueController
+from controllers.trajectories import Trajectory
+from neck_sim.params import NeckParams
+
+__all__ = ["PAPER_CONTROL_TESTS", "PAPER_TABLE3", "TABLE3_CASES", "default_log_path", "control_tests", "table3",
+           "format_control_table", "format_table3"]
+
+# §7: mean |alpha_hat - alpha_d| and mean |alpha_hat - alpha_IP| (deg) of tests 1-3 on the prototype.
+PAPER_CONTROL_TESTS = {1: {"tracking": 0.52, "estimation": 2.19},
+                       2: {"tracking": 0.37, "estimation": 1.51},
+                       3: {"tracking": 0.66, "estimation": 1.09}}
+
+# Table 3 (simulation, identification trajectory, law with friction and inextensible estimator):
+# e_alpha = mean |alpha - alpha_hat| and e = mean tracking error (deg).
+PAPER_TABLE3 = {("rigid", True): {"estimation": 0.35, "tracking": 0.08},
+                ("identified", True): {"estimation": 1.68, "tracking": 0.11},
+                ("rigid", False): {"estimation": 2.00, "tracking": 0.21},
+                ("identified", False): {"estimation": 2.88, "tracking": 0.26}}
+TABLE3_CASES = tuple(PAPER_TABLE3)           # (plant cable model, pulleys in the controller)
+
+
+def default_log_path(trajectory: str, label: str, directory: str = "logs") -> str:
+    """``logs/simulate-<trajectory>-<label>-<UTC time>.mcap``."""
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%dT%H%M%S")
+    return os.path.join(directory, f"simulate-{trajectory}-{label}-{stamp}.mcap")
+
+
+def _make_plant(params: NeckParams, rigid_cables: bool, seed: int):
+    from neck_sim.plant import Plant
+    return Plant(params, seed=seed, rigid_cables=rigid_cables)
+
+
+def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
+                  log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
+                  rigid_cables: bool = False, controller_params: NeckParams | None = None,
+                  controller_kwargs: Mapping | None = None, plant_factory=None) -> dict[str, RunResult]:
+    """Run each law on a fresh plant; returns ``{"law 1": RunResult, ...}``.
+
+    ``params`` are the plant's; ``controller_params`` the controller's model (default the same,
+    e.g. ``params.replace(**{"geometry.r": 0.0})`` for a controller that ignores the pulleys).
+    ``log_path(label)`` gives each run's MCAP path (None: no log).  ``controller_kwargs`` go to
+    every :class:`ComputedTorqueController` (e.g. ``t_min``, ``cable_model``, ``f_s``).
+    ``plant_factory(params, rigid_cables, seed)`` replaces :class:`neck_sim.plant.Plant`.
+    """
+    make = plant_factory or _make_plant
+    model = params if controller_params is None else controller_params
+    out = {}
+    for law in laws:
+        label = f"law {int(law)}"
+        ctrl = ComputedTorqueController(model, law, **dict(controller_kwargs or {}))
+        out[label] = run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
+                                     log_path=log_path(f"law{int(law)}") if log_path else None,
+                                     run_info={"experiment": "control test", "seed": seed,
+                                               "rigid_cables": rigid_cables})
+    return out
+
+
+def table3(params: NeckParams, trajectory: Trajectory, law: int = 2, *,
+           log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
+           controller_kwargs: Mapping | None = None, plant_factory=None) -> dict[tuple[str, bool], RunResult]:
+    """The four runs of Table 3: plant ``rigid``/``identified`` cables x controller with/without
+    pulleys (``geometry.r = 0`` in the controller's model only; the plant always has them)."""
+    make = plant_factory or _make_plant
+    bare = params.replace(**{"geometry.r": 0.0})
+    out = {}
+    for plant_kind, pulleys in TABLE3_CASES:
+        label = f"{plant_kind}-{'pulleys' if pulleys else 'no-pulleys'}"
+        ctrl = ComputedTorqueController(params if pulleys else bare, law, **dict(controller_kwargs or {}))
+        plant = make(params, plant_kind == "rigid", seed)
+        out[(plant_kind, pulleys)] = run_closed_loop(
+            plant, ctrl, trajectory, progress=progress, log_path=log_path(label) if log_path else None,
+            run_info={"experiment": "table 3", "plant_cables": plant_kind, "controller_pulleys": pulleys,
+                      "seed": seed})
+    return out
+
+
+def _f(x: float, width: int = 6) -> str:
+    return f"{x:{width}.2f}"
+
+
+def format_control_table(results: Mapping[str, RunResult], compare_with_paper: bool = True) -> str:
+    """Measured metrics per run, with the paper's §7 values for laws 1-3 when asked."""
+    head = (f"{'run':<8} {'e':>6} {'(paper)':>7} {'e_a cam':>7} {'(paper)':>7} {'e_a true':>8} {'e true':>6} "
+            f"{'f min':>6} {'f max':>6} {'f mean':>6} {'slack':>6} {'sat':>5}")
+    lines = ["angles in deg: e = mean|alpha_hat - alpha_d|, e_a cam = mean|alpha_hat - alpha_camera|, "
+             "e_a true = mean|alpha_hat - alpha|, e true = mean|alpha - alpha_d|; forces in N; "
+             "slack/sat = samples with a slack cable / a force clipped at f_max", head, "-" * len(head)]
+    for label, res in results.items():
+        m = res.metrics
+        paper = PAPER_CONTROL_TESTS.get(res.info.get("law")) if compare_with_paper else None
+        pe = _f(paper["tracking"], 7) if paper else f"{'':>7}"
+        pa = _f(paper["estimation"], 7) if paper else f"{'':>7}"
+        lines.append(f"{label:<8} {_f(m.tracking_error)} {pe} {_f(m.estimation_error_camera, 7)} {pa} "
+                     f"{_f(m.estimation_error_true, 8)} {_f(m.tracking_error_true)} {_f(m.force_min)} "
+                     f"{_f(m.force_max)} {_f(m.force_mean)} {m.slack_samples:>6d} {m.saturated_samples:>5d}")
+    return "\n".join(lines)
+
+
+def format_table3(results: Mapping[tuple[str, bool], RunResult]) -> str:
+    """Table 3 layout: rows with/without pulleys, columns rigid/identified cables, measured (paper)."""
+    lines = ["Table 3 (deg): e_alpha = mean|alpha - alpha_hat|, e = mean|alpha_hat - alpha_d|; measured (paper)",
+             f"{'control law':<16} {'rigid-cable plant':>32} {'identified-cable plant':>32}"]
+    for pulleys in (True, False):
+        cells = []
+        for plant_kind in ("rigid", "identified"):
+            res = results.get((plant_kind, pulleys))
+            paper = PAPER_TABLE3[(plant_kind, pulleys)]
+            if res is None:
+                cells.append(f"{'-':>32}")
+                continue
+            m = res.metrics
+            cells.append(f"e_a {m.estimation_error_true:5.2f} ({paper['estimation']:.2f})  "
+                         f"e {m.tracking_error:5.2f} ({paper['tracking']:.2f})".rjust(32))
+        lines.append(f"{'with pulleys' if pulleys else 'without pulleys':<16} {cells[0]} {cells[1]}")
+    return "\n".join(lines)

@@ -1,0 +1,111 @@
+"""`neck-sim simulate`: the paper's control tests (§6.3, §7) and Table 3 on the simulated plant."""
+
+from __future__ import annotations
+
+import json
+import os
+
+HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--trajectory", choices=("control-test", "identification"), default=None,
+                        help="reference (default control-test; identification with --table3)")
+    parser.add_argument("--law", type=int, nargs="+", choices=(1, 2, 3), default=None, metavar="{1,2,3}",
+                        help="control law(s) of §6.3: 1 no friction, 2 friction, 3 friction + elastic "
+                             "estimator (default 2; several run one after the other)")
+    parser.add_argument("-o", "--output", metavar="LOG",
+                        help="MCAP log path (several runs: the run's label is added before .mcap); "
+                             "default logs/simulate-<trajectory>-<run>-<time>.mcap")
+    parser.add_argument("--no-log", action="store_true", help="do not write MCAP logs")
+    parser.add_argument("--json", metavar="PATH", help="write the metrics as JSON")
+    parser.add_argument("--plots", metavar="DIR", help="write figures 11-16 as PNG into DIR")
+    parser.add_argument("--duration-scale", type=float, default=1.0, metavar="S",
+                        help="scale every move and hold duration (default 1: 2.5 s moves, 1 s holds)")
+    parser.add_argument("--table3", action="store_true",
+                        help="Table 3: the law with/without pulleys in its model on rigid- and "
+                             "identified-cable plants (4 runs)")
+    parser.add_argument("--rigid-cables", action="store_true", help="plant with rigid cables (control tests)")
+    parser.add_argument("--no-pulleys", action="store_true",
+                        help="controller model with r = 0 (the plant keeps its pulleys)")
+    parser.add_argument("--cable-model", choices=("inextensible", "constant", "variable"),
+                        help="override the law's estimator cable model")
+    parser.add_argument("--t-min", type=float, metavar="N", help="minimal cable tension of eq (65) (default 8.5 N)")
+    parser.add_argument("--params", metavar="FILE", help="parameter file (.json/.toml) for plant and controller")
+    parser.add_argument("--n-joints", type=int, default=None, help="number of X-joints (default 3)")
+    parser.add_argument("--seed", type=int, default=0, help="camera-noise seed")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _params(args):
+    from neck_sim import params as P
+    if args.params:
+        p = P.load(args.params)
+        if args.n_joints is not None and args.n_joints != p.n_joints:
+            raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {p.n_joints})")
+        return p
+    return P.default_params(3 if args.n_joints is None else args.n_joints)
+
+
+def _log_namer(args, trajectory: str, several: bool):
+    from controllers.experiments import default_log_path
+    if args.no_log:
+        if args.output:
+            raise ValueError("-o/--output and --no-log contradict each other")
+        return None
+    if args.output is None:
+        return lambda label: default_log_path(trajectory, label)
+    if not args.output.endswith(".mcap"):
+        raise ValueError(f"{args.output}: log files end in .mcap")
+    if not several:
+        return lambda label: args.output
+    return lambda label: f"{args.output[:-5]}-{label}.mcap"
+
+
+def run(args) -> int:
+    from controllers import experiments as ex
+    from controllers.trajectories import make_trajectory
+
+    params = _params(args)
+    if args.table3 and (args.rigid_cables or args.no_pulleys):
+        raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")
+    laws = args.law or [2]
+    if args.table3 and len(laws) != 1:
+        raise ValueError("--table3 runs one law (give a single --law)")
+    name = args.trajectory or ("identification" if args.table3 else "control-test")
+    traj = make_trajectory(name, params, args.duration_scale)
+    kwargs = {}
+    if args.t_min is not None:
+        kwargs["t_min"] = args.t_min
+    if args.cable_model is not None:
+        kwargs["cable_model"] = args.cable_model
+    progress = not args.no_progress
+    print(f"{name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}")
+
+    if args.table3:
+        results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,
+                            seed=args.seed, controller_kwargs=kwargs)
+        labelled = {f"{kind} cables, {'pulleys' if pul else 'no pulleys'}": res for (kind, pul), res in results.items()}
+        print(ex.format_control_table(labelled, compare_with_paper=False))
+        print()
+        print(ex.format_table3(results))
+    else:
+        ctrl_params = params.replace(**{"geometry.r": 0.0}) if args.no_pulleys else params
+        labelled = ex.control_tests(
+            params, traj, laws, log_path=_log_namer(args, name, len(laws) > 1), progress=progress,
+            seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs)
+        print(ex.format_control_table(labelled, compare_with_paper=(name == "control-test" and not args.rigid_cables
+                                                                    and not args.no_pulleys)))
+    for label, res in labelled.items():
+        if res.log_path:
+            print(f"log ({label}): {res.log_path}")
+    if args.json:
+        from neck_sim.params import atomic_write_bytes
+        payload = {label: res.summary() for label, res in labelled.items()}
+        atomic_write_bytes(args.json, (json.dumps(payload, indent=2) + "\n").encode())
+        print(f"metrics: {args.json}")
+    if args.plots:
+        from controllers.plots import save_run_plots
+        paths = save_run_plots(labelled, args.plots)
+        print(f"plots: {len(paths)} PNG files in {os.path.abspath(args.plots)}")
+    return 0
