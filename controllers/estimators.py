@@ -31,6 +31,7 @@ from enum import Enum
 import numpy as np
 
 from neck_sim.analytic.estimation import pinv_increment
+from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams, default_params
 
 __all__ = ["CableModel", "ElongationEstimator", "JointAngleEstimator"]
@@ -49,14 +50,13 @@ class CableModel(str, Enum):
 
 
 def _per_cable(value, n_cables: int, name: str) -> np.ndarray:
+    """A per-cable vector (N+1,); a scalar stands for the same value on every cable."""
     arr = np.asarray(value, dtype=float)
     if arr.ndim == 0:
         arr = np.full(n_cables, float(arr))
-    if arr.shape != (n_cables,):
+    if arr.ndim != 1:
         raise ValueError(f"{name}: expected {n_cables} values (one per cable), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: contains NaN or infinity")
-    return arr
+    return check_cables(arr, n_cables, name)
 
 
 class ElongationEstimator:

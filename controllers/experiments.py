@@ -94,20 +94,30 @@ def _f(x: float, width: int = 6) -> str:
 
 
 def format_control_table(results: Mapping[str, RunResult], compare_with_paper: bool = True) -> str:
-    """Measured metrics per run, with the paper's §7 values for laws 1-3 when asked."""
-    head = (f"{'run':<8} {'e':>6} {'(paper)':>7} {'e_a cam':>7} {'(paper)':>7} {'e_a true':>8} {'e true':>6} "
-            f"{'f min':>6} {'f max':>6} {'f mean':>6} {'slack':>6} {'sat':>5}")
+    """Measured metrics per run; with ``compare_with_paper`` the paper's §7 values for laws 1-3."""
+    cols = [("run", 8, None), ("e", 6, None), ("(paper)", 7, "tracking"), ("e_a cam", 7, None),
+            ("(paper)", 7, "estimation"), ("e_a true", 8, None), ("e true", 6, None), ("f min", 6, None),
+            ("f max", 6, None), ("f mean", 6, None), ("slack", 6, None), ("sat", 5, None)]
+    if not compare_with_paper:
+        cols = [c for c in cols if c[2] is None]
+    head = " ".join(f"{name:<{w}}" if name == "run" else f"{name:>{w}}" for name, w, _ in cols)
     lines = ["angles in deg: e = mean|alpha_hat - alpha_d|, e_a cam = mean|alpha_hat - alpha_camera|, "
              "e_a true = mean|alpha_hat - alpha|, e true = mean|alpha - alpha_d|; forces in N; "
              "slack/sat = samples with a slack cable / a force clipped at f_max", head, "-" * len(head)]
     for label, res in results.items():
         m = res.metrics
-        paper = PAPER_CONTROL_TESTS.get(res.info.get("law")) if compare_with_paper else None
-        pe = _f(paper["tracking"], 7) if paper else f"{'':>7}"
-        pa = _f(paper["estimation"], 7) if paper else f"{'':>7}"
-        lines.append(f"{label:<8} {_f(m.tracking_error)} {pe} {_f(m.estimation_error_camera, 7)} {pa} "
-                     f"{_f(m.estimation_error_true, 8)} {_f(m.tracking_error_true)} {_f(m.force_min)} "
-                     f"{_f(m.force_max)} {_f(m.force_mean)} {m.slack_samples:>6d} {m.saturated_samples:>5d}")
+        paper = PAPER_CONTROL_TESTS.get(res.info.get("law"), {})
+        values = {"run": f"{label:<8}", "e": _f(m.tracking_error), "e_a cam": _f(m.estimation_error_camera, 7),
+                  "e_a true": _f(m.estimation_error_true, 8), "e true": _f(m.tracking_error_true),
+                  "f min": _f(m.force_min), "f max": _f(m.force_max), "f mean": _f(m.force_mean),
+                  "slack": f"{m.slack_samples:>6d}", "sat": f"{m.saturated_samples:>5d}"}
+        cells = []
+        for name, w, key in cols:
+            if key is None:
+                cells.append(values[name])
+            else:
+                cells.append(_f(paper[key], w) if key in paper else f"{'':>{w}}")
+        lines.append(" ".join(cells))
     return "\n".join(lines)
 
 

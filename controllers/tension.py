@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams
 
 __all__ = ["TensionInfeasibleError", "TensionDistribution", "tension_lower_bounds", "distribute_tensions"]
@@ -65,13 +66,13 @@ def tension_lower_bounds(theta_dot_d, theta_ddot_d, params: NeckParams, *, f_s=N
     """
     act = params.actuation
     n1 = params.n_cables
-    td = _cables(theta_dot_d, n1, "theta_dot_d")
-    tdd = _cables(theta_ddot_d, n1, "theta_ddot_d")
+    td = check_cables(theta_dot_d, n1, "theta_dot_d")
+    tdd = check_cables(theta_ddot_d, n1, "theta_ddot_d")
     t_min = act.t_min if t_min is None else float(t_min)
     f_min = act.f_min if f_min is None else float(f_min)
     bound = t_min + (act.R / act.r_d) * act.I_a * tdd
     if f_s is not None:
-        fs = _cables(f_s, n1, "f_s")
+        fs = check_cables(f_s, n1, "f_s")
         bound = bound + (2 / np.pi) * np.arctan(params.friction.c_s * td) * fs
     return np.maximum(bound, f_min)
 
@@ -90,7 +91,7 @@ def distribute_tensions(Z, gamma, lower, f_max: float) -> TensionDistribution:
     gamma = np.asarray(gamma, dtype=float)
     if gamma.ndim == 0 or gamma.shape[-1] != n:
         raise ValueError(f"gamma: expected shape (..., {n}) (one torque per joint), got {gamma.shape}")
-    lower = _cables(lower, n + 1, "lower")
+    lower = check_cables(lower, n + 1, "lower")
     for name, arr in (("Z", Z), ("gamma", gamma)):
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{name}: contains NaN or infinity")
@@ -122,11 +123,3 @@ def distribute_tensions(Z, gamma, lower, f_max: float) -> TensionDistribution:
     saturated = requested > f_max
     return TensionDistribution(np.minimum(requested, f_max), requested, saturated, binding)
 
-
-def _cables(arr, n_cables: int, name: str) -> np.ndarray:
-    a = np.asarray(arr, dtype=float)
-    if a.ndim == 0 or a.shape[-1] != n_cables:
-        raise ValueError(f"{name}: expected shape (..., {n_cables}) (one value per cable), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or infinity")
-    return a
