@@ -16,11 +16,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--params", metavar="PATH", help="parameter file (.json/.toml); default: the paper's neck")
     parser.add_argument("--json", metavar="PATH", help="also write the table as JSON (atomically)")
+    parser.add_argument("--dynamics", action="store_true",
+                        help="also run the dynamics check: 10 s of constant antagonistic forces (loop gaps, "
+                             "tensions) and the free response against the analytic eqs 29-30 over 1 s")
+    parser.add_argument("--timestep", type=float, default=None, help="physics timestep for --dynamics (s)")
 
 
 def run(args) -> int:
     from neck_sim import params as P
-    from neck_sim.crossval import crossval, format_table, write_json
+    from neck_sim.crossval import crossval, format_table
 
     if args.params:
         params = P.load(args.params)
@@ -33,6 +37,16 @@ def run(args) -> int:
     report = crossval(params, samples=args.samples, seed=args.seed, alpha_range=math.radians(args.range_deg),
                       progress=args.samples >= 500)
     print(format_table(report))
+    ok = report.ok
+    payload = report.to_dict()
+    if args.dynamics:
+        from neck_sim.crossval import dynamics_check, format_dynamics
+        dyn = dynamics_check(params, timestep=args.timestep, progress=True)
+        print(format_dynamics(dyn))
+        ok = ok and dyn.ok
+        payload["dynamics"] = {**dyn._asdict(), "ok": dyn.ok}
     if args.json:
-        write_json(report, args.json)
-    return 0 if report.ok else 1
+        import json
+        from neck_sim.params import atomic_write_bytes
+        atomic_write_bytes(args.json, (json.dumps(payload, indent=2) + "\n").encode())
+    return 0 if ok else 1
