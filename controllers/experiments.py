@@ -95,7 +95,8 @@ def _f(x: float, width: int = 6) -> str:
 
 def format_control_table(results: Mapping[str, RunResult], compare_with_paper: bool = True) -> str:
     """Measured metrics per run; with ``compare_with_paper`` the paper's §7 values for laws 1-3."""
-    cols = [("run", 8, None), ("e", 6, None), ("(paper)", 7, "tracking"), ("e_a cam", 7, None),
+    run_w = max([8] + [len(label) for label in results])
+    cols = [("run", run_w, None), ("e", 6, None), ("(paper)", 7, "tracking"), ("e_a cam", 7, None),
             ("(paper)", 7, "estimation"), ("e_a true", 8, None), ("e true", 6, None), ("f min", 6, None),
             ("f max", 6, None), ("f mean", 6, None), ("slack", 6, None), ("sat", 5, None)]
     if not compare_with_paper:
@@ -107,7 +108,7 @@ def format_control_table(results: Mapping[str, RunResult], compare_with_paper: b
     for label, res in results.items():
         m = res.metrics
         paper = PAPER_CONTROL_TESTS.get(res.info.get("law"), {})
-        values = {"run": f"{label:<8}", "e": _f(m.tracking_error), "e_a cam": _f(m.estimation_error_camera, 7),
+        values = {"run": f"{label:<{run_w}}", "e": _f(m.tracking_error), "e_a cam": _f(m.estimation_error_camera, 7),
                   "e_a true": _f(m.estimation_error_true, 8), "e true": _f(m.tracking_error_true),
                   "f min": _f(m.force_min), "f max": _f(m.force_max), "f mean": _f(m.force_mean),
                   "slack": f"{m.slack_samples:>6d}", "sat": f"{m.saturated_samples:>5d}"}
@@ -124,17 +125,17 @@ def format_control_table(results: Mapping[str, RunResult], compare_with_paper: b
 def format_table3(results: Mapping[tuple[str, bool], RunResult]) -> str:
     """Table 3 layout: rows with/without pulleys, columns rigid/identified cables, measured (paper)."""
     lines = ["Table 3 (deg): e_alpha = mean|alpha - alpha_hat|, e = mean|alpha_hat - alpha_d|; measured (paper)",
-             f"{'control law':<16} {'rigid-cable plant':>32} {'identified-cable plant':>32}"]
+             f"{'control law':<16} | {'rigid-cable plant':<31} | {'identified-cable plant':<31}"]
     for pulleys in (True, False):
         cells = []
         for plant_kind in ("rigid", "identified"):
             res = results.get((plant_kind, pulleys))
             paper = PAPER_TABLE3[(plant_kind, pulleys)]
             if res is None:
-                cells.append(f"{'-':>32}")
+                cells.append(f"{'-':<31}")
                 continue
             m = res.metrics
-            cells.append(f"e_a {m.estimation_error_true:5.2f} ({paper['estimation']:.2f})  "
-                         f"e {m.tracking_error:5.2f} ({paper['tracking']:.2f})".rjust(32))
-        lines.append(f"{'with pulleys' if pulleys else 'without pulleys':<16} {cells[0]} {cells[1]}")
+            cells.append(f"e_a {m.estimation_error_true:4.2f} ({paper['estimation']:4.2f}), "
+                         f"e {m.tracking_error:4.2f} ({paper['tracking']:4.2f})")
+        lines.append(f"{'with pulleys' if pulleys else 'without pulleys':<16} | {cells[0]:<31} | {cells[1]:<31}")
     return "\n".join(lines)
