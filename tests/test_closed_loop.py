@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from controllers.closed_loop import run_closed_loop
+from controllers.closed_loop import compute_metrics, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
+from controllers.experiments import TABLE3_CASES, format_table3
 from controllers.trajectories import control_test_trajectory, cycloidal_path
 from neck_sim.analytic import estimate_alpha_pinv
 from neck_sim.logs import MJCF_ATTACHMENT, read_log
@@ -169,3 +170,36 @@ def test_simulate_command_refuses_bad_options(argv, message, capsys, tmp_path, m
     assert main(["simulate", "--no-progress", *argv]) == 2
     assert message in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_metrics_on_known_arrays():
+    t = np.arange(6) * 0.002
+    alpha_d = np.zeros((6, 2))
+    alpha_hat = np.radians(np.tile([[1.0, -3.0]], (6, 1)))
+    alpha = np.radians(np.tile([[0.5, -3.0]], (6, 1)))
+    tension = np.array([[0, 0], [0, 1], [1, 1], [2, 0], [2, 2], [3, 3]], dtype=float)
+    force = np.array([[2, 9]] * 6, dtype=float)
+    saturated = np.zeros((6, 2), dtype=bool)
+    saturated[4, 1] = True
+    cam_t = np.array([0.001, 0.003])
+    cam_a = np.radians([[2.0, -3.0], [1.0, -1.0]])
+    m = compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, cam_t, cam_a)
+    assert m.tracking_error == pytest.approx(2.0)                # (1 + 3) / 2 deg
+    assert m.estimation_error_true == pytest.approx(0.25)        # (0.5 + 0) / 2
+    assert m.estimation_error_camera == pytest.approx((1 + 0 + 0 + 2) / 4)
+    assert m.take_up == pytest.approx(0.004)                     # all taut first at sample 2
+    assert m.slack_samples == 1 and m.slack_per_cable == (0, 1)  # the take-up is not slack
+    assert m.saturated_samples == 1
+    assert (m.force_min, m.force_max) == (2.0, 9.0)
+
+
+def test_table3_layout():
+    from types import SimpleNamespace
+
+    fake = {case: SimpleNamespace(metrics=SimpleNamespace(estimation_error_true=1.0 + i, tracking_error=0.1 * i))
+            for i, case in enumerate(TABLE3_CASES)}
+    text = format_table3(fake)
+    rows = text.splitlines()
+    assert rows[2].startswith("with pulleys") and rows[3].startswith("without pulleys")
+    assert "e_a 1.00 (0.35), e 0.00 (0.08)" in rows[2] and "e_a 2.00 (1.68), e 0.10 (0.11)" in rows[2]
+    assert "e_a 3.00 (2.00), e 0.20 (0.21)" in rows[3] and "e_a 4.00 (2.88), e 0.30 (0.26)" in rows[3]
