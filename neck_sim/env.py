@@ -334,6 +334,7 @@ class NeckEnvironment(control.Environment):
 
     def close(self) -> None:
         self._task.close_log()
+        super().close()
 
 
 def _check_trajectory(traj, params: NeckParams) -> None:
