@@ -96,7 +96,7 @@ def run(args) -> int:
             seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs)
         # the paper's §7 numbers only make sense beside the same experiment
         same = (name == "control-test" and args.duration_scale == 1.0 and not args.rigid_cables
-                and not args.no_pulleys and params.n_joints == 3)
+                and not args.no_pulleys and params.n_joints == 3 and not kwargs and not args.params)
         print(ex.format_control_table(labelled, compare_with_paper=same))
     for label, res in labelled.items():
         if res.log_path:
