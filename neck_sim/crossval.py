@@ -103,8 +103,12 @@ def _velocity_map(model, data, ix, helper_tendons) -> np.ndarray:
 
 
 def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range: float = math.radians(60),
-             progress: bool = False) -> CrossvalReport:
-    """Compare MuJoCo and the analytic model at ``samples`` random poses (see module docstring)."""
+             progress: bool = False, analytic_params: NeckParams | None = None) -> CrossvalReport:
+    """Compare MuJoCo and the analytic model at ``samples`` random poses (see module docstring).
+
+    The MuJoCo model is built from ``params``; the analytic side uses ``analytic_params``
+    (default the same), e.g. to see how far a mis-specified analytic model lands.
+    """
     import mujoco
 
     if int(samples) != samples or samples < 1:
@@ -113,6 +117,9 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
         raise ValueError(f"alpha_range: must be in (0, alpha_max = {params.geometry.alpha_max:.4g}) rad, "
                          f"got {alpha_range!r}")
     n = params.n_joints
+    ap = params if analytic_params is None else analytic_params
+    if ap.n_joints != n:
+        raise ValueError(f"analytic_params: {ap.n_joints} joints, the model has {n}")
     model, _ = build_model(params)
     ix = model_index(model)
     # Bar bodies only: helpers and motors get no mass; the helpers keep their small rotary
@@ -154,7 +161,7 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
     jr = np.zeros((3, model.nv))
     for alpha in it:
         pq = place(alpha)
-        record("lengths", data.ten_length[ix.cable_tendon] - l0, cable_lengths(alpha, params))
+        record("lengths", data.ten_length[ix.cable_tendon] - l0, cable_lengths(alpha, ap))
         gaps = data.site_xpos[ix.loop_sites[:, 0]] - data.site_xpos[ix.loop_sites[:, 1]]
         record("loop gap", np.linalg.norm(gaps, axis=1), np.zeros(n))
         J = _velocity_map(model, data, ix, helper_tendons)
@@ -165,15 +172,15 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
         closed[ix.dof_helper, np.arange(n - 1)] = pq.dq_helper
         record("dq/dalpha", J, closed)
         tenJ = _dense_ten_J(model, data, ix.cable_tendon)
-        record("Z", -(tenJ @ J).T, transmission_matrix(alpha, params))
+        record("Z", -(tenJ @ J).T, transmission_matrix(alpha, ap))
         mujoco.mj_fullM(model, data, Mq)
         M_mj = J.T @ Mq @ J
         for b in helper_bodies:
             mujoco.mj_jacBody(model, data, None, jr, int(b))
             w = jr[2] @ J                                # helper's angular velocity per alpha_dot
             M_mj -= model.body_inertia[b, 2] * np.outer(w, w)
-        record("M", M_mj, mass_matrix(alpha, params, motors=False))
-        record("g", J.T @ (data.qfrc_bias - data.qfrc_spring), gravity_spring_torque(alpha, params))
+        record("M", M_mj, mass_matrix(alpha, ap, motors=False))
+        record("g", J.T @ (data.qfrc_bias - data.qfrc_spring), gravity_spring_torque(alpha, ap))
     rows = []
     for q, (kind, thr) in THRESHOLDS.items():
         ab, rel = errs[q]

@@ -101,7 +101,7 @@ class Effect:
             if f.name in ("cables", "joints"):
                 continue
             v = getattr(self, f.name)
-            if n_cables is not None and f.name == self.magnitude_field and getattr(self, "cables", 1) is not False:
+            if n_cables is not None and f.name == self.magnitude_field and hasattr(self, "cables") and v is not None:
                 v = self.per_cable(n_cables)
             out[f"{self.name}.{f.name}"] = v
         return out
