@@ -28,9 +28,12 @@ from controllers.tension import distribute_tensions, tension_lower_bounds
 from neck_sim.analytic import cable_lengths, linkage_dynamics, motor_friction, transmission_matrix
 from neck_sim.params import NeckParams
 
-from identification.preprocessing import Measurements
+from identification import regressors as reg
+from identification.preprocessing import Measurements, Prepared
 
-__all__ = ["PredictedRun", "predict_run", "synthetic_measurements"]
+__all__ = ["PredictedRun", "predict_run", "synthetic_measurements", "prepared_from_prediction", "ExcitationQuality",
+           "excitation_quality", "sequences_trajectory", "paper_amplitudes", "OptimisedExcitation",
+           "optimise_identification_trajectory"]
 
 
 class PredictedRun(NamedTuple):
@@ -111,3 +114,124 @@ def synthetic_measurements(run: PredictedRun, params: NeckParams, rng: np.random
     ac = np.stack([np.interp(tc, run.t, run.alpha[:, j]) for j in range(run.alpha.shape[1])], axis=1)
     ac = ac + sigma * rng.standard_normal(ac.shape)
     return Measurements(run.t, theta, run.force, tc, ac)
+
+
+def prepared_from_prediction(run: PredictedRun, alpha_dot, alpha_ddot, rate_hz: float) -> Prepared:
+    """A :class:`Prepared` of a predicted run sampled at ``rate_hz`` (no noise, no filtering)."""
+    step = max(1, int(round(1.0 / (rate_hz * float(np.median(np.diff(run.t)))))))
+    h = step * float(np.median(np.diff(run.t)))
+    sl = slice(None, None, step)
+    theta_dot = run.theta_dot[sl]
+    x = run.x_c[sl]
+    x_dot = np.gradient(x, h, axis=0)
+    return Prepared(t=run.t[sl], theta=run.theta[sl], theta_dot=theta_dot,
+                    theta_ddot=np.gradient(theta_dot, h, axis=0), force=run.force[sl], alpha=run.alpha[sl],
+                    alpha_dot=np.asarray(alpha_dot)[sl], alpha_ddot=np.asarray(alpha_ddot)[sl], x_c=x,
+                    x_c_dot=x_dot, x_c_ddot=np.gradient(x_dot, h, axis=0), motor_rate_hz=1.0 / h, rate_hz=1.0 / h,
+                    decimation=1, camera=(run.t[sl], run.alpha[sl]))
+
+
+class ExcitationQuality(NamedTuple):
+    """Predicted conditioning of a trajectory's observation matrices (column-scaled, BIRDy-style).
+
+    cond_friction, cond_elastic, cond_variable: models of eqs (46-47), (44-45), (54-57);
+    force_max N, the largest predicted force; tension_range (N+1,) N, max - min tension per cable.
+    """
+
+    cond_friction: float
+    cond_elastic: float
+    cond_variable: float
+    force_max: float
+    tension_range: np.ndarray
+
+
+def excitation_quality(trajectory, params: NeckParams, *, rate_hz: float = 100.0,
+                       obs_rate_hz: float = 31.25) -> ExcitationQuality:
+    """Predict the run of ``trajectory`` (``controllers.trajectories.Trajectory``) on ``params``
+    and condition the observation matrices it would give (sampled at ``obs_rate_hz``)."""
+    t = np.arange(0.0, trajectory.duration, 1.0 / rate_hz)
+    s = trajectory.sample(t)
+    run = predict_run(s.alpha, s.alpha_dot, s.alpha_ddot, t, params)
+    prep = prepared_from_prediction(run, s.alpha_dot, s.alpha_ddot, obs_rate_hz)
+    dyn = reg.joint_dynamics(prep, params)
+    conds = []
+    for W in (reg.friction_model(prep, params, dyn).W, reg.elastic_model(prep, params, dyn=dyn).W,
+              reg.variable_stiffness_model(prep, params, params.friction.f_s).W):
+        Ws = W / np.linalg.norm(W, axis=0)
+        sv = np.linalg.svd(Ws, compute_uv=False)
+        conds.append(float(sv[0] / sv[-1]))
+    return ExcitationQuality(*conds, float(run.force.max()), np.ptp(run.tension, axis=0))
+
+
+def sequences_trajectory(amplitudes, move_time: float = 2.5, hold_time: float = 1.0, name: str = "identification"):
+    """The §5.2.2 shape for any amplitudes (S, N) rad: per sequence a, -a, 0, -a, a, 0 from straight."""
+    from controllers.trajectories import cycloidal_path
+
+    amps = np.asarray(amplitudes, dtype=float)
+    if amps.ndim != 2:
+        raise ValueError(f"amplitudes: expected shape (sequences, N), got {amps.shape}")
+    zero = np.zeros(amps.shape[1])
+    poses = [zero]
+    for a in amps:
+        poses += [a, -a, zero, -a, a, zero]
+    return cycloidal_path(poses, move_time, hold_time, name=name)
+
+
+def paper_amplitudes(n_joints: int = 3) -> np.ndarray:
+    """The paper's four sequences for N = 3 (rad): [40, 30, 20] deg, then each joint flipped."""
+    base = np.radians(np.linspace(40.0, 20.0, n_joints))
+    amps = np.tile(base, (n_joints + 1, 1))
+    for j in range(n_joints):
+        amps[j + 1, j] *= -1
+    return amps
+
+
+class OptimisedExcitation(NamedTuple):
+    amplitudes: np.ndarray          # (S, N) rad
+    trajectory: object              # controllers.trajectories.Trajectory
+    quality: ExcitationQuality
+    initial_quality: ExcitationQuality
+    evaluations: int
+
+
+def optimise_identification_trajectory(params: NeckParams, *, initial=None, move_time: float = 2.5,
+                                       hold_time: float = 1.0, max_amplitude: float = np.radians(50.0),
+                                       force_limit: float | None = None, max_evaluations: int = 300,
+                                       rate_hz: float = 50.0) -> OptimisedExcitation:
+    """Amplitudes of the §5.2.2 sequences that minimise the predicted condition number of the
+    variable-stiffness observation matrix (eqs 56-57), the least well-conditioned of the three.
+
+    Same shape, move and hold times as the paper's (so the same duration); each amplitude within
+    +-``max_amplitude``; predicted forces above ``force_limit`` (default 0.9 f_max) are penalised.
+    Nelder-Mead from ``initial`` (default the paper's amplitudes; first steps of 10 deg towards
+    zero), ``max_evaluations`` predictions at ``rate_hz``; the best point evaluated is returned.
+    """
+    from scipy.optimize import minimize
+
+    x0 = paper_amplitudes(params.n_joints) if initial is None else np.asarray(initial, dtype=float)
+    shape = x0.shape
+    limit = 0.9 * params.actuation.f_max if force_limit is None else force_limit
+    best = {"cost": np.inf, "x": None, "n": 0}
+
+    def cost(x):
+        best["n"] += 1
+        inside = np.clip(x, -max_amplitude, max_amplitude)
+        q = excitation_quality(sequences_trajectory(inside.reshape(shape), move_time, hold_time), params,
+                               rate_hz=rate_hz)
+        c = q.cond_variable + 0.5 * max(0.0, q.force_max - limit) + 10.0 * np.abs(x - inside).sum()
+        if c < best["cost"]:            # keep the best point evaluated, whatever the simplex does
+            best.update(cost=c, x=inside.copy())
+        return c
+
+    start = np.clip(x0.ravel(), -max_amplitude, max_amplitude)
+    step = np.radians(10.0)
+    simplex = np.vstack([start] + [start + step * np.sign(-start[i] or 1.0) * np.eye(start.size)[i]
+                                   for i in range(start.size)])
+    minimize(cost, start, method="Nelder-Mead",
+             options={"maxfev": max_evaluations, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-3})
+    count = [best["n"]]
+    amps = best["x"].reshape(shape)
+    traj = sequences_trajectory(amps, move_time, hold_time, name="identification (optimised)")
+    return OptimisedExcitation(amps, traj, excitation_quality(traj, params, rate_hz=rate_hz),
+                               excitation_quality(sequences_trajectory(x0, move_time, hold_time), params,
+                                                  rate_hz=rate_hz), count[0])
