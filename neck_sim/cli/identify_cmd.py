@@ -24,6 +24,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--slack-threshold", type=float, default=2.0, metavar="N",
                         help="tension (eq 41) below which a cable sample counts as slack and is left out")
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
+    parser.add_argument("--simulators", action="store_true",
+                        help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
+                             "identified plant and compare with the log (§5.6, figure 9; minutes)")
+    parser.add_argument("--law", type=int, default=1, choices=(1, 2, 3),
+                        help="control law the logged run used, for --simulators (default 1, the paper's)")
 
 
 def run(args) -> int:
@@ -36,7 +41,8 @@ def run(args) -> int:
     settings = IdentificationSettings(
         weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
-    log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"), require=("motors",))
+    topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
+    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",))
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
@@ -44,12 +50,25 @@ def run(args) -> int:
           file=sys.stderr)
     result = identify_log(log, settings, models=models)
     print(format_tables(result))
+    summary = result.to_dict()
+    comparison = None
+    if args.simulators:
+        from identification.simulator import compare_simulators
+
+        comparison = compare_simulators(log, result, law=args.law)
+        print("\n§5.6 simulators against the logged run\n" + comparison.table())
+        summary["simulators"] = comparison.to_dict()
     if args.json:
-        atomic_write_bytes(args.json, (json.dumps(result.to_dict(), indent=2) + "\n").encode())
+        atomic_write_bytes(args.json, (json.dumps(summary, indent=2) + "\n").encode())
         print(f"wrote {args.json}", file=sys.stderr)
     if args.plots:
-        from identification.plots import save_identification_figures
+        import os
 
-        for path in save_identification_figures(result, args.plots):
+        from identification.plots import figure_simulator, save_figure, save_identification_figures
+
+        paths = save_identification_figures(result, args.plots)
+        if comparison is not None:
+            paths.append(save_figure(figure_simulator(comparison.series), os.path.join(args.plots, "fig9_simulators.png")))
+        for path in paths:
             print(f"wrote {path}", file=sys.stderr)
     return 0
