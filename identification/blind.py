@@ -1,0 +1,258 @@
+"""Blind tests of the diagnosis: plant logs with a hidden effect drawn from a seed.
+
+A blind test hides one effect of the vocabulary (:mod:`neck_sim.effects`) in the simulated plant,
+writes a contract log, and lets :func:`identification.discovery.diagnose` find it without being
+told.  This module makes those logs quickly:
+
+* :func:`excitation_trajectory` -- the §5.2.2 identification shape (sequences of six cycloidal
+  motions, each sequence flipping one joint), shortened: a few sequences, faster moves;
+* :func:`run_log` -- drives a :class:`neck_sim.plant.Plant` along it and writes the MCAP log
+  (measured topics, reference and the simulation truth).  The controller is a motor-space servo
+  around the flat-output feed-forward of the *nominal* model
+  (:func:`identification.excitation.predict_run`: the forces and motor angles that would track
+  the trajectory exactly on the paper's model),
+
+      f = f_ff + k_p (theta_ff - theta) + k_d (theta_dot_ff - theta_dot_filtered),
+
+  a few vector operations per period instead of the computed-torque law's model evaluation
+  (about 50 times faster), so a test can afford a dozen logs.  The data are identification-like:
+  every joint sweeps +-20..40 deg, forces span about 5..80 N, holds at every knot;
+* :func:`hidden_effect` -- the effect to hide, in a *form that differs from the diagnosis'
+  candidate* where the vocabulary allows it (another Stribeck speed and smoothing, a sharper
+  dry-friction sign, friction on one cable only, a pulley-friction smoothing other than the
+  candidate's), with its magnitude and the affected cable or joint drawn from a seed;
+* :data:`CASES` -- per effect, the plant (parameters and effects) and the baseline model the
+  diagnosis starts from.  Effects of the paper's own model (``dry_friction``,
+  ``cable_elasticity``, ``tension_stiffening``) are hidden against a baseline that lacks them.
+
+Units SI; cables 0-based in code (c1 = 0), 1-based in reports.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from neck_sim.effects import (ActuationDelay, DryFriction, Effects, Payload, PulleyFriction, Pretension,
+                              SpringError, StribeckFriction, TensionStiffening, ViscousFriction, CableElasticity)
+from neck_sim.params import NeckParams, default_params
+
+__all__ = ["excitation_trajectory", "ServoGains", "run_log", "BlindCase", "hidden_effect", "CASES", "MAGNITUDES",
+           "make_case"]
+
+
+def excitation_trajectory(params: NeckParams, sequences: int = 3, move_time: float = 0.9, hold_time: float = 0.25,
+                          scale: float = 1.0):
+    """The identification trajectory's shape (§5.2.2), shortened: ``sequences`` of its N + 1
+    sequences (first the all-same-direction one, then joint 1 flipped, ...), each of six cycloidal
+    motions of ``move_time`` s with ``hold_time`` s holds; amplitudes times ``scale``.
+
+    3 sequences with the defaults last 20.8 s.
+    """
+    from identification.excitation import paper_amplitudes, sequences_trajectory
+
+    n = params.n_joints
+    if not 1 <= sequences <= n + 1:
+        raise ValueError(f"sequences: expected 1..{n + 1}, got {sequences}")
+    amps = paper_amplitudes(n)[:sequences] * scale
+    traj = sequences_trajectory(amps, move_time, hold_time, name=f"excitation ({sequences} sequences)")
+    traj.check_workspace(params)
+    return traj
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """Motor-space servo gains: k_p N/rad, k_d N s/rad at the motor shaft; speed filter tau s."""
+
+    k_p: float = 3.0
+    k_d: float = 0.25
+    tau: float = 0.01
+
+
+def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, trajectory=None, seed: int = 0,
+            model_params: NeckParams | None = None, gains: ServoGains = ServoGains(), rigid_cables: bool = False,
+            progress: bool = False, run_info: dict | None = None, write_truth: bool = True) -> str:
+    """Simulate ``trajectory`` (default :func:`excitation_trajectory`) on a plant with hidden
+    ``effects`` and write the contract log at ``path`` (atomic).  Returns ``path``.
+
+    ``plant_params`` are the plant's constants (its friction and cable values are the truth),
+    ``model_params`` the nominal model the feed-forward is computed with (default
+    ``default_params(N)``, the paper's model).  The log's ``neck`` record holds the nominal
+    constants of ``plant_params``; the ``run`` record holds the hidden effects (simulation only),
+    ``/neck/truth`` the true state unless ``write_truth`` is False (it halves the writing time).
+    """
+    from tqdm.auto import tqdm
+
+    from identification.excitation import predict_run
+    from neck_sim.logs import LogWriter
+    from neck_sim.plant import Plant
+    from neck_sim.replay import plant_run_info
+
+    n = plant_params.n_joints
+    model = default_params(n) if model_params is None else model_params
+    traj = excitation_trajectory(plant_params) if trajectory is None else trajectory
+    rate = plant_params.control.rate_hz
+    dt = 1.0 / rate
+    steps = int(round(traj.duration * rate)) + 1
+    t = np.arange(steps) * dt
+    s = traj.sample(t)
+    ff = predict_run(s.alpha, s.alpha_dot, s.alpha_ddot, t, model)
+    plant = Plant(plant_params, effects or Effects(), seed=seed, rigid_cables=rigid_cables)
+    plant.reset(alpha0=s.alpha[0])
+    act = plant_params.actuation
+    f_lo, f_hi = act.f_min, act.f_max
+    a = dt / (gains.tau + dt)
+    info = {"generator": "identification.blind.run_log", "trajectory": traj.name,
+            **plant_run_info(plant), **(run_info or {})}
+    theta_prev = plant.encoders()
+    speed = np.zeros(n + 1)
+    theta_log = np.empty((steps, n + 1))
+    force_log = np.empty((steps, n + 1))
+    truth_log = [] if write_truth else None
+    frames = []
+    for k in tqdm(range(steps), desc="blind log", unit="step", disable=not progress, mininterval=0.5):
+        theta = plant.encoders()
+        speed += a * ((theta - theta_prev) / dt - speed)
+        theta_prev = theta
+        f = ff.force[k] + gains.k_p * (ff.theta[k] - theta) + gains.k_d * (ff.theta_dot[k] - speed)
+        f = np.clip(f, f_lo, f_hi)
+        theta_log[k], force_log[k] = theta, f
+        if truth_log is not None:
+            truth_log.append(plant.truth())
+        plant.step(f)
+        frame = plant.camera_frame()
+        if frame is not None:
+            frames.append(frame)
+    with LogWriter(path, plant_params, mjcf_xml=plant.xml, run_info=info) as w:
+        for k in range(steps):
+            tk = float(t[k])
+            w.motors(tk, theta_log[k], force_log[k])
+            w.reference(tk, s.alpha[k])
+            if truth_log is not None:
+                tr = truth_log[k]
+                w.truth(tk, tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
+        for tc, ac in frames:
+            w.camera(tc, ac)
+    return os.fspath(path)
+
+
+# ------------------------------------------------------------------------------------- hidden effects
+
+#: Test magnitudes per effect (the "medium" level); the detection benchmark scales them.
+MAGNITUDES = {
+    "dry_friction": 12.0,            # N, f_s on one cable (baseline without friction)
+    "viscous_friction": 0.15,        # N s/rad at the motor shaft
+    "stribeck_friction": 8.0,        # N of extra breakaway friction
+    "pulley_friction": 0.15,         # fraction of the tension
+    "cable_elasticity": 1.0,         # scale of the paper's stiffness (baseline with rigid cables)
+    "tension_stiffening": 1.0,       # scale of the paper's lambda (baseline with linear cables)
+    "payload": 0.08,                 # kg at the head
+    "spring_error": 0.5,             # relative stiffness error on one joint
+    "actuation_delay": 0.010,        # s
+    "pretension": 1.5e-3,            # m on one cable
+}
+
+
+@dataclass(frozen=True)
+class BlindCase:
+    """A plant with one hidden effect and the model the diagnosis starts from.
+
+    ``params`` the plant's constants, ``effects`` its hidden effects, ``model`` the baseline
+    structure for :func:`identification.discovery.diagnose` (component names), ``expect`` the
+    effect a correct diagnosis names, ``cables``/``joints`` where it was hidden (0-based).
+    """
+
+    name: str
+    params: NeckParams
+    effects: Effects
+    model: tuple
+    expect: str
+    cables: tuple = ()
+    joints: tuple = ()
+    magnitude: float = 0.0
+    description: str = ""
+    info: dict = field(default_factory=dict)
+
+
+PAPER_MODEL = ("dry_friction", "cable_elasticity", "tension_stiffening")
+
+
+def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams | None = None) -> BlindCase:
+    """The blind case for effect ``name``: magnitude ``level`` x :data:`MAGNITUDES` times a factor
+    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``.
+
+    The hidden forms differ from the candidates' on purpose (see the module docstring).
+    """
+    p = default_params(3) if params is None else params
+    n1 = p.n_cables
+    rng = np.random.default_rng([seed, sum(map(ord, name))])
+    mag = MAGNITUDES.get(name, 0.0) * level * float(np.exp(rng.uniform(np.log(0.8), np.log(1.25))))
+    cable = int(rng.integers(n1))
+    joint = int(rng.integers(p.n_joints))
+    model = PAPER_MODEL
+    cables: tuple = (cable,)
+    joints: tuple = ()
+    if name == "none":
+        return BlindCase(name, p, Effects(), model, "none", (), (), 0.0, "no hidden effect (noise only)")
+    if name == "dry_friction":
+        # a sharper sign than eq (37)'s c_s = 0.5, on one cable only, against a friction-free model
+        cs = float(rng.uniform(2.0, 6.0))
+        plant = p.replace(**{"friction.f_s": (0.0,) * n1})
+        eff = Effects(dry_friction=DryFriction(f_s=mag, c_s=cs, cables=(cable,)))
+        desc = f"dry friction {mag:.2f} N, c_s = {cs:.2f} s/rad, on cable {cable + 1} only"
+        return BlindCase(name, plant, eff, ("cable_elasticity", "tension_stiffening"), name, cables, (), mag, desc)
+    if name == "viscous_friction":
+        eff = Effects(viscous_friction=ViscousFriction(c_v=mag, cables=(cable,)))
+        desc = f"viscous friction {mag:.3f} N s/rad on cable {cable + 1}"
+    elif name == "stribeck_friction":
+        speed = float(rng.uniform(2.5, 7.0))
+        smooth = float(rng.uniform(0.2, 0.8))
+        eff = Effects(stribeck_friction=StribeckFriction(df=mag, speed=speed, smoothing=smooth, cables=(cable,)))
+        desc = f"Stribeck friction +{mag:.2f} N, speed {speed:.2f} rad/s, smoothing {smooth:.2f} rad/s, cable {cable + 1}"
+    elif name == "pulley_friction":
+        c = float(rng.uniform(1.0, 3.0))
+        eff = Effects(pulley_friction=PulleyFriction(mu=mag, c=c, cables=(cable,)))
+        desc = f"pulley friction mu = {mag:.3f}, c = {c:.2f} s/rad, cable {cable + 1}"
+    elif name == "cable_elasticity":
+        k = tuple(np.asarray(p.cables.k) * mag)
+        eff = Effects(cable_elasticity=CableElasticity(k=k))
+        desc = f"elastic cables, k = {mag:.2f} x Table 2"
+        return BlindCase(name, p, eff, ("dry_friction",), name, tuple(range(n1)), (), mag, desc)
+    elif name == "tension_stiffening":
+        lam = tuple(np.asarray(p.cables.lam) * mag)
+        eff = Effects(tension_stiffening=TensionStiffening(lam=lam))
+        desc = f"tension stiffening, lambda = {mag:.2f} x Table 2"
+        return BlindCase(name, p, eff, ("dry_friction", "cable_elasticity"), name, tuple(range(n1)), (), mag, desc)
+    elif name == "payload":
+        eff = Effects(payload=Payload(mass=mag))
+        cables = ()
+        desc = f"payload {1e3 * mag:.0f} g at the head"
+    elif name == "spring_error":
+        scale = 1.0 + mag * (1 if rng.random() < 0.5 else -1)
+        eff = Effects(spring_error=SpringError(stiffness_scale=scale, joints=(joint,)))
+        cables, joints = (), (joint,)
+        desc = f"side springs of joint {joint + 1} x {scale:.2f}"
+    elif name == "actuation_delay":
+        eff = Effects(actuation_delay=ActuationDelay(delay=mag))
+        cables = ()
+        desc = f"actuation delay {1e3 * mag:.1f} ms"
+    elif name == "pretension":
+        eff = Effects(pretension=Pretension(elongation=mag, cables=(cable,)))
+        desc = f"pretension {1e3 * mag:.2f} mm on cable {cable + 1}"
+    else:
+        raise ValueError(f"unknown effect {name!r} (known: none, {', '.join(MAGNITUDES)})")
+    return BlindCase(name, p, eff, model, name, cables, joints, mag, desc)
+
+
+CASES = ("none",) + tuple(MAGNITUDES)
+
+
+def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None, progress: bool = False):
+    """(case, log path): :func:`hidden_effect` simulated by :func:`run_log` with camera seed ``seed``."""
+    case = hidden_effect(name, seed, level)
+    run_log(path, case.params, case.effects, trajectory=trajectory, seed=seed, progress=progress,
+            run_info={"hidden": case.description})
+    return case, os.fspath(path)

@@ -1,0 +1,345 @@
+"""The diagnosis report: a Markdown file with figures (matplotlib, Agg backend).
+
+``write_report(diagnosis, directory)`` writes
+
+* ``report.md`` -- verdict, findings with parameters and uncertainties, the gain of each finding
+  (cross-validated residual RMS per type, alpha_hat against the camera, re-simulation), every
+  candidate of every step with its evidence, the split and the method;
+* ``residuals_torque.png``, ``residuals_cable.png`` -- the cross-validated residuals of the
+  baseline and of the final model against time, motor speed, tension and joint angle (the
+  variables an effect shows in: a friction against speed, a stiffness error against tension, a
+  payload or spring error against the angle, a delay or pretension against time);
+* ``candidates.png`` -- the cross-validated improvement of every candidate, per step;
+* ``alpha_hat.png``, ``resimulation.png`` -- alpha_hat and the open-loop re-simulation against
+  the camera and the encoders, baseline vs final;
+* ``model.json`` -- the final model (terms, plant parameters, effects; ``--model`` reads it).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+__all__ = ["write_report", "format_summary"]
+
+
+def _fmt(v, unit: str = "", digits: int = 4) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.{digits}g}" + (f" {unit}" if unit else "")
+
+
+def _param_text(params: dict) -> str:
+    parts = []
+    for name, p in params.items():
+        s = p.get("sigma")
+        unit = p.get("unit", "")
+        unit = "" if unit in ("-", "") else f" {unit}"
+        parts.append(f"{name} = {_fmt(p['value'])}" + (f" ± {_fmt(s, digits=2)}" if s is not None else "") + unit)
+    return "; ".join(parts)
+
+
+def format_summary(diag) -> str:
+    """A few lines for the terminal: verdict, findings and their gains."""
+    d = diag.to_dict()
+    lines = [f"diagnosis of {d['source'] or 'data'} from the model: {diag.steps[0].base.fit.model.describe()}",
+             f"verdict: {d['verdict']}"]
+    for f in d["findings"]:
+        ev = f["evidence"]
+        where = ""
+        if f.get("cables"):
+            where = " on cable(s) " + ", ".join(map(str, f["cables"]))
+        if f.get("joints"):
+            where = " on joint(s) " + ", ".join(map(str, f["joints"]))
+        lines.append(f"  step {f['step']}: {f['effect']}{where}: held-out (cross-validated) score "
+                     f"-{100 * ev['holdout_improvement']:.1f} % (p = {ev['p_holdout_wilcoxon']:.2g}, "
+                     f"F-test p = {ev['p_train_F']:.2g})")
+        lines.append(f"      {_param_text(f['parameters'])}")
+        g = f["gain"]["residual_rms_crossvalidated"]
+        for key, label, scale, unit in (("torque_Nm", "torque", 1.0, "N m"), ("elongation_m", "elongation", 1e3, "mm"),
+                                        ("tension_N", "tension", 1.0, "N")):
+            b, a = g["before"].get(key), g["after"].get(key)
+            if b is None and a is None:
+                continue
+            bs = "-" if b is None else ", ".join(f"{scale * x:.3g}" for x in b)
+            as_ = "-" if a is None else ", ".join(f"{scale * x:.3g}" for x in a)
+            lines.append(f"      {label} RMS ({unit}): [{bs}] -> [{as_}]")
+    for key, label in (("alpha_hat_vs_camera", "alpha_hat vs camera, held out, mean |error|"),):
+        b, a = d["baseline"].get(key), d["final"].get(key)
+        if b and a:
+            lines.append(f"  {label}: {b['holdout']['mean_abs_deg']:.2f} deg -> {a['holdout']['mean_abs_deg']:.2f} deg")
+    b, a = d["baseline"].get("resimulation"), d["final"].get("resimulation")
+    if b and a:
+        lines.append(f"  re-simulation, held out: theta RMS {_vec(b['holdout']['theta_rms_rad'])} -> "
+                     f"{_vec(a['holdout']['theta_rms_rad'])} rad; alpha mean |error| "
+                     f"{_fmt(b['holdout']['alpha_mean_abs_deg'], digits=3)} -> "
+                     f"{_fmt(a['holdout']['alpha_mean_abs_deg'], digits=3)} deg ({b['status']} / {a['status']})")
+    t = d["timings_s"]
+    lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in t.items()))
+    return "\n".join(lines)
+
+
+def _vec(v) -> str:
+    return "-" if v is None else "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+
+
+# ----------------------------------------------------------------------------------------- figures
+
+def _shade(ax, split, t):
+    for a, b, fold in split.blocks:
+        if fold == 1:
+            ax.axvspan(a, b, color="0.92", zorder=0)
+
+
+def _residual_figure(diag, path: str, kind: str) -> str:
+    import matplotlib.pyplot as plt
+
+    data = diag.data
+    n, C = data.n, data.C
+    res = diag.series["cv_residuals"]
+    base, final = res[0], res[-1]
+    labels = diag.series["labels"]
+    t_hat = diag.steps[0].base.fit.tension_hat if diag.steps[0].base.fit.model.elastic else \
+        diag.steps[-1].base.fit.tension_hat
+    if kind == "torque":
+        chans = list(range(n))
+        scale, unit, title = 1.0, "N m", "joint torque residual (eq 51)"
+        cable_of = lambda i: i                                  # the right cable that drives joint i
+        joint_of = lambda i: i
+        name_of = lambda i: f"joint {i + 1}"
+    else:
+        chans = list(range(n, n + C))
+        scale, unit, title = 1e3, "mm", "elongation residual (eq 42/54)"
+        cable_of = lambda i: i - n
+        joint_of = lambda i: min(i - n, n - 1)
+        name_of = lambda i: f"cable {i - n + 1}"
+    fig, axes = plt.subplots(len(chans), 4, figsize=(15, 2.3 * len(chans) + 0.8), squeeze=False)
+    xs = [("time (s)", lambda i: data.t), ("motor speed (rad/s)", lambda i: data.theta_dot[:, cable_of(i)]),
+          ("tension (N)", lambda i: t_hat[:, cable_of(i)]), ("joint angle (deg)", lambda i: np.degrees(data.alpha[:, joint_of(i)]))]
+    for r, ch in enumerate(chans):
+        for c, (xlabel, xf) in enumerate(xs):
+            ax = axes[r, c]
+            x = xf(ch)
+            if c == 0:
+                _shade(ax, diag.split, data.t)
+                ax.plot(x, scale * base[:, ch], color="0.5", lw=0.7, label=f"baseline: {labels[0]}")
+                if len(res) > 1:
+                    ax.plot(x, scale * final[:, ch], color="C3", lw=0.7, label=f"final: {labels[-1]}")
+            else:
+                ax.plot(x, scale * base[:, ch], ".", color="0.6", ms=1.5)
+                if len(res) > 1:
+                    ax.plot(x, scale * final[:, ch], ".", color="C3", ms=1.5)
+            ax.axhline(0, color="k", lw=0.5)
+            if r == len(chans) - 1:
+                ax.set_xlabel(xlabel)
+            if c == 0:
+                ax.set_ylabel(f"{name_of(ch)} ({unit})")
+    axes[0, 0].legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"{title}, cross-validated (grey bands: primary held-out blocks)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _candidates_figure(diag, path: str) -> str:
+    import matplotlib.pyplot as plt
+
+    steps = diag.steps
+    fig, axes = plt.subplots(1, len(steps), figsize=(4.5 * len(steps), 3.2), squeeze=False)
+    for i, st in enumerate(steps):
+        ax = axes[0, i]
+        cands = sorted(st.candidates, key=lambda c: c.improvement)
+        vals = [100 * max(c.improvement, -20) if math.isfinite(c.improvement) else 0 for c in cands]
+        colors = ["C2" if c.significant else ("C1" if not c.valid else "0.6") for c in cands]
+        ax.barh([c.term.name for c in cands], vals, color=colors)
+        ax.axvline(100 * (diag.settings.min_improvement if diag.settings else 0.02), color="k", ls="--", lw=0.8)
+        ax.set_title(f"step {i + 1}: {st.verdict}", fontsize=9)
+        ax.set_xlabel("held-out improvement (%)")
+        ax.tick_params(labelsize=7)
+    fig.suptitle("candidates (green: significant; orange: unphysical sign; dashed: minimum improvement)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _alpha_figure(diag, path: str) -> str | None:
+    import matplotlib.pyplot as plt
+
+    series = diag.series.get("alpha_hat") or []
+    if not series or series[0] is None:
+        return None
+    n = diag.data.n
+    fig, axes = plt.subplots(n, 1, figsize=(12, 2.2 * n + 0.6), sharex=True, squeeze=False)
+    labels = diag.series["labels"]
+    for j in range(n):
+        ax = axes[j, 0]
+        _shade(ax, diag.split, None)
+        ax.plot(series[0]["t"], series[0]["error_deg"][:, j], color="0.5", lw=0.7, label=f"baseline: {labels[0]}")
+        if len(series) > 1:
+            ax.plot(series[-1]["t"], series[-1]["error_deg"][:, j], color="C3", lw=0.7, label=f"final: {labels[-1]}")
+        ax.set_ylabel(f"joint {j + 1} (deg)")
+        ax.axhline(0, color="k", lw=0.5)
+    axes[0, 0].legend(fontsize=7)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle("alpha_hat (eq 35 with the model's elongation) minus camera angle")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _resim_figure(diag, path: str) -> str | None:
+    import matplotlib.pyplot as plt
+
+    rs = diag.series.get("resimulation") or {}
+    if not rs:
+        return None
+    keys = sorted(rs)
+    data = diag.data
+    fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
+    labels = diag.series["labels"]
+    for idx, color in zip(keys, ("0.5", "C3")):
+        s = rs[idx]
+        lab = labels[idx] if idx < len(labels) else str(idx)
+        for j in range(data.C):
+            axes[0].plot(s["t"], s["theta_error"][:, j], color=color, lw=0.6, alpha=0.4 + 0.15 * j,
+                         label=lab if j == 0 else None)
+        for j in range(data.n):
+            axes[1].plot(s["t_camera"], s["alpha_error_deg"][:, j], color=color, lw=0.6, label=lab if j == 0 else None)
+    for ax in axes:
+        _shade(ax, diag.split, None)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.legend(fontsize=7)
+    axes[0].set_ylabel("theta error (rad)")
+    axes[1].set_ylabel("alpha - camera (deg)")
+    axes[1].set_xlabel("time (s)")
+    fig.suptitle("open-loop re-simulation driven by the logged forces")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+# ----------------------------------------------------------------------------------------- markdown
+
+def _rms_rows(before: dict, after: dict) -> list[str]:
+    rows = []
+    for key, label, scale, unit in (("torque_Nm", "joint torque", 1.0, "N m"),
+                                    ("tension_N", "cable tension", 1.0, "N"),
+                                    ("elongation_m", "cable elongation", 1e3, "mm")):
+        b, a = before.get(key), after.get(key)
+        if b is None and a is None:
+            continue
+        for i in range(len(b if b is not None else a)):
+            who = f"joint {i + 1}" if key == "torque_Nm" else f"cable {i + 1}"
+            bv = "-" if b is None else f"{scale * b[i]:.4g}"
+            av = "-" if a is None else f"{scale * a[i]:.4g}"
+            ratio = "" if (b is None or a is None or b[i] == 0) else f"{a[i] / b[i]:.2f}"
+            rows.append(f"| {label} ({unit}) | {who} | {bv} | {av} | {ratio} |")
+    return rows
+
+
+def _markdown(diag, figures: dict) -> str:
+    d = diag.to_dict()
+    L = [f"# Diagnosis of `{os.path.basename(d['source']) or 'data'}`", "",
+         f"Baseline model: **{diag.steps[0].base.fit.model.describe()}**.", "",
+         f"## Verdict: `{d['verdict']}`", ""]
+    if d["findings"]:
+        L += ["| step | effect | where | parameters | held-out improvement | p (Wilcoxon, held out) | p (F, train) |",
+              "|---|---|---|---|---|---|---|"]
+        for f in d["findings"]:
+            where = ("cables " + ", ".join(map(str, f["cables"]))) if f.get("cables") else \
+                (("joints " + ", ".join(map(str, f["joints"]))) if f.get("joints") else "all")
+            ev = f["evidence"]
+            L.append(f"| {f['step']} | {f['effect']} | {where} | {_param_text(f['parameters'])} | "
+                     f"{100 * ev['holdout_improvement']:.1f} % | {ev['p_holdout_wilcoxon']:.2g} | {ev['p_train_F']:.2g} |")
+        L.append("")
+    else:
+        L += ["No candidate effect improves the held-out prediction significantly: the model explains the data "
+              "to within its noise.", ""]
+    for f in d["findings"]:
+        L += [f"### Gain of step {f['step']} ({f['effect']}), cross-validated residual RMS", "",
+              "| residual | channel | before | after | after/before |", "|---|---|---|---|---|"]
+        g = f["gain"]["residual_rms_crossvalidated"]
+        L += _rms_rows(g["before"], g["after"])
+        a = f["gain"].get("alpha_hat_vs_camera_holdout")
+        if a:
+            L.append(f"| alpha_hat - camera, held out (deg, mean abs) | all | {a['before']['mean_abs_deg']:.3f} | "
+                     f"{a['after']['mean_abs_deg']:.3f} | {a['after']['mean_abs_deg'] / a['before']['mean_abs_deg']:.2f} |")
+        L.append("")
+    b, a = d["baseline"], d["final"]
+    L += ["## Baseline vs final model (held-out data)", "",
+          f"Final model: **{a['description']}**.", "",
+          "| residual | channel | baseline | final | final/baseline |", "|---|---|---|---|---|"]
+    L += _rms_rows(b["residual_rms_crossvalidated"], a["residual_rms_crossvalidated"])
+    if b.get("alpha_hat_vs_camera") and a.get("alpha_hat_vs_camera"):
+        bb, aa = b["alpha_hat_vs_camera"]["holdout"], a["alpha_hat_vs_camera"]["holdout"]
+        L.append(f"| alpha_hat - camera (deg, mean abs) | held out | {bb['mean_abs_deg']:.3f} | {aa['mean_abs_deg']:.3f} | "
+                 f"{aa['mean_abs_deg'] / bb['mean_abs_deg']:.2f} |")
+    if b.get("resimulation") and a.get("resimulation"):
+        bb, aa = b["resimulation"]["holdout"], a["resimulation"]["holdout"]
+        for j in range(len(bb["theta_rms_rad"] or aa["theta_rms_rad"] or [])):
+            bv = bb["theta_rms_rad"][j] if bb["theta_rms_rad"] else None
+            av = aa["theta_rms_rad"][j] if aa["theta_rms_rad"] else None
+            L.append(f"| re-simulation theta (rad RMS) | motor {j + 1} | {_fmt(bv)} | {_fmt(av)} | "
+                     f"{_fmt(av / bv, digits=2) if bv and av else ''} |")
+        L.append(f"| re-simulation alpha - camera (deg, mean abs) | held out | {_fmt(bb['alpha_mean_abs_deg'])} | "
+                 f"{_fmt(aa['alpha_mean_abs_deg'])} | |")
+        L += ["", f"Re-simulation status: baseline {b['resimulation']['status']}; final {a['resimulation']['status']}."]
+    L.append("")
+    for key, title in (("torque", "Joint-torque residuals"), ("cable", "Cable residuals"),
+                       ("candidates", "Candidates"), ("alpha", "alpha_hat against the camera"),
+                       ("resim", "Re-simulation")):
+        if figures.get(key):
+            L += [f"### {title}", "", f"![{title}]({os.path.basename(figures[key])})", ""]
+    L += ["## Candidates per step", ""]
+    for s in d["steps"]:
+        L += [f"### Step {s['step']}: from {s['description']} -> `{s['verdict']}`", "",
+              "| candidate | shape | held-out improvement | torque ratio | cable ratio | p (held out) | p (F) | "
+              "added params | sign | significant |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for c in s["candidates"]:
+            shape = ", ".join(f"{k}={_fmt(v)}" for k, v in (c.get("shape") or {}).items())
+            br = c.get("holdout_ratio_by_block") or {}
+            L.append(f"| {c['effect']} | {shape} | {100 * (c['holdout_improvement'] or 0):.1f} % | "
+                     f"{_fmt(br.get('torque'), digits=3)} | {_fmt(br.get('cable'), digits=3)} | "
+                     f"{_fmt(c['p_holdout_wilcoxon'], digits=2)} | {_fmt(c['p_train_F'], digits=2)} | "
+                     f"{c['added_parameters']} | {'ok' if c['physical_sign'] else 'wrong'} | "
+                     f"{'**yes**' if c['significant'] else 'no'} |")
+        for p in s["pairwise"]:
+            if "error" in p:
+                continue
+            L.append(f"\nEncompassing test {p['a']} vs {p['b']}: {p['b']} adds to {p['a']}: "
+                     f"{p['b_adds_to_a']['improvement'] * 100:.1f} % (p {p['b_adds_to_a']['p_holdout']:.2g}), "
+                     f"{p['a']} adds to {p['b']}: {p['a_adds_to_b']['improvement'] * 100:.1f} % "
+                     f"(p {p['a_adds_to_b']['p_holdout']:.2g}).")
+        L.append("")
+    sp = d["split"]
+    L += ["## Method", "", f"Split: {sp['method']}; {sp['chunks']} chunks for the paired test.", ""]
+    L += [f"- **{k}**: {v}" for k, v in d["method"].items()]
+    L += ["", "Time (s): " + ", ".join(f"{k} {v:.2f}" for k, v in d["timings_s"].items()), ""]
+    return "\n".join(L)
+
+
+def write_report(diag, directory) -> list[str]:
+    """Write ``report.md``, the figures and ``model.json`` into ``directory``; returns the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from neck_sim.params import atomic_write_bytes
+
+    directory = os.fspath(directory)
+    os.makedirs(directory, exist_ok=True)
+    figs = {"torque": _residual_figure(diag, os.path.join(directory, "residuals_torque.png"), "torque"),
+            "cable": _residual_figure(diag, os.path.join(directory, "residuals_cable.png"), "cable"),
+            "candidates": _candidates_figure(diag, os.path.join(directory, "candidates.png")),
+            "alpha": _alpha_figure(diag, os.path.join(directory, "alpha_hat.png")),
+            "resim": _resim_figure(diag, os.path.join(directory, "resimulation.png"))}
+    md = os.path.join(directory, "report.md")
+    atomic_write_bytes(md, _markdown(diag, figs).encode())
+    model = os.path.join(directory, "model.json")
+    diag.write_model(model)
+    return [md, model] + [p for p in figs.values() if p]

@@ -1,0 +1,62 @@
+"""`neck-sim diagnose LOG`: what the model gets wrong, which effect causes it, and the gain of adding it."""
+
+from __future__ import annotations
+
+import sys
+
+HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
+        "gain on held-out data")
+
+MODEL_HELP = ("baseline model: 'paper' (default: arctan friction + variable-stiffness cables), 'rigid' (rigid "
+              "cables, no friction, eq 25), 'rigid-friction', 'linear' (Table 1's constant stiffness), a "
+              "comma-separated list of effect names, or a model.json written by a previous diagnosis")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
+    parser.add_argument("--model", metavar="MODEL", default="paper", help=MODEL_HELP)
+    parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
+    parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
+    parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
+    parser.add_argument("--steps", type=int, default=3, metavar="K",
+                        help="forward selection: at most K findings (default 3; 1 = the verdict only)")
+    parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
+    parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
+    parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the tests (default 1e-3)")
+    parser.add_argument("--min-improvement", type=float, default=0.02,
+                        help="smallest held-out score improvement that counts (default 0.02)")
+    parser.add_argument("--candidates", default=None,
+                        help="comma-separated effects to consider (default: the whole vocabulary)")
+    parser.add_argument("--no-resim", action="store_true", help="skip the open-loop re-simulations")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def run(args) -> int:
+    from identification.discovery import DiagnosisSettings, diagnose_log, parse_model
+    from identification.report import format_summary, write_report
+    from neck_sim.logs import read_log
+
+    model = parse_model(args.model)              # fail early on a bad --model
+    kw = {}
+    if args.candidates:
+        kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
+    if args.steps < 1:
+        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    settings = DiagnosisSettings(max_steps=args.steps, alpha=args.alpha, min_improvement=args.min_improvement,
+                                 resimulate=not args.no_resim, **kw)
+    log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
+                   require=("motors", "camera"))
+    print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
+          f"model: {model.describe()}", file=sys.stderr)
+    diag = diagnose_log(log, model, settings, progress=not args.quiet)
+    print(format_summary(diag))
+    if args.json:
+        diag.write_json(args.json)
+        print(f"wrote {args.json}", file=sys.stderr)
+    if args.extended:
+        diag.write_model(args.extended)
+        print(f"wrote {args.extended}", file=sys.stderr)
+    if args.report:
+        for path in write_report(diag, args.report):
+            print(f"wrote {path}", file=sys.stderr)
+    return 0
