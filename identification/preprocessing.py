@@ -39,6 +39,7 @@ Shapes: T control-rate samples, K camera frames, S slow-grid samples, N joints, 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -150,8 +151,13 @@ def lowpass(x, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np
     nyq = 0.5 * fs
     if not 0 < cutoff_hz < nyq:
         raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
-    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=axis)
+    return signal.sosfiltfilt(_butter_sos(int(order), float(cutoff_hz), float(fs)).copy(), x, axis=axis)
+
+
+@functools.lru_cache(maxsize=256)
+def _butter_sos(order: int, cutoff_hz: float, fs: float) -> np.ndarray:
+    # designed once per (order, cutoff, rate): the design costs more than filtering a short signal
+    return signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
 
 
 def residual_cutoff(x, fs: float, *, order: int = 4, n_candidates: int = 120,
@@ -213,10 +219,11 @@ def _stages(q: int) -> list[int]:
     return stages
 
 
+@functools.lru_cache(maxsize=32)
 def _antialias(q: int) -> signal.dlti:
     """scipy.signal.decimate's default filter (Chebyshev I, order 8, 0.05 dB, 0.8/q) with DC gain 1."""
     b, a = signal.cheby1(8, 0.05, 0.8 / q)
-    return signal.dlti(b * (a.sum() / b.sum()), a)
+    return signal.dlti(b, a)
 
 
 def decimate(x, q: int, axis: int = 0) -> np.ndarray:

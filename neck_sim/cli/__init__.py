@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "replay": "replay_cmd",
     "identify": "identify_cmd",
     "simulate": "simulate_cmd",
+    "diagnose": "diagnose_cmd",
     "render": "render_cmd",
 }
 
