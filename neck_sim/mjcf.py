@@ -351,12 +351,16 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
             ET.SubElement(helper, "inertial", pos="0 0 0", mass=_fmt(_HELPER_MASS),
                           diaginertia=_vec(_HELPER_INERTIA, _HELPER_INERTIA, _HELPER_INERTIA))
 
+    fric = params.friction
     for j in range(n + 1):
         name = f"motor{j + 1}"
         mb = add_body(name, "world", lay.motor_site[j])
         ax = lay.motor_axis[j]
+        # Static stand-in for eq (37): its slope at rest, (2/pi) f_s c_s R/r_d (N s/m along the
+        # cable); the plant sets this damping to zero and applies eq (37) itself.
         ET.SubElement(mb, "joint", name=name, type="slide", axis=_vec(ax[0], ax[1], 0.0),
-                      armature=_fmt(act.reflected_inertia - _MOTOR_BODY_MASS))   # total = I_a (R/r_d)^2
+                      armature=_fmt(act.reflected_inertia - _MOTOR_BODY_MASS),   # total = I_a (R/r_d)^2
+                      damping=_fmt(2 / math.pi * fric.f_s[j] * fric.c_s * act.R / act.r_d))
         ET.SubElement(mb, "inertial", pos="0 0 0", mass=_fmt(_MOTOR_BODY_MASS),
                       diaginertia="1e-9 1e-9 1e-9")
         ET.SubElement(mb, "geom", name=f"{name}_geom", type="box", size="0.006 0.004 0.0015",

@@ -23,7 +23,7 @@ Callbacks are process-global in MuJoCo.  The callback is registered once and dis
 MuJoCo model keeps working), and each plant sees only its own parameters.  The callback is a
 small C function compiled at first use with the system C compiler into a cache
 (``$NECK_SIM_CACHE`` or ``~/.cache/neck_sim``); when no compiler is available a pure-Python
-callback with the same physics takes over (``set_backend``), about 20x slower.
+callback with the same physics takes over (``set_backend``), 6-8x slower per control period.
 
 Stepping: :meth:`Plant.step` runs one control period (1/``control.rate_hz``) of physics
 sub-steps as ``mj_step2`` + ``mj_step`` x (n-1) + ``mj_step1``, so that after every period the
@@ -42,7 +42,6 @@ import math
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 import warnings
 import weakref
@@ -276,6 +275,12 @@ def _build_native() -> ctypes.CDLL:
             if res.returncode != 0:
                 raise NativeBuildError(f"{cc} failed: {res.stderr.strip()[:2000]}")
             os.replace(tmp, lib_path)
+            for old in os.listdir(cache):           # libraries of earlier sources or MuJoCo versions
+                if old.startswith("neck_plant_") and old.endswith(".so") and old != os.path.basename(lib_path):
+                    try:
+                        os.unlink(os.path.join(cache, old))
+                    except OSError:
+                        pass
         except (OSError, subprocess.SubprocessError) as exc:
             raise NativeBuildError(f"cannot compile the plant callback: {exc}") from None
         finally:
@@ -451,6 +456,12 @@ class Plant:
         self.true_params = self.effects.true_params(self.params)
         self.seed = int(seed)
         self.rigid_cables = bool(rigid_cables)
+        if self.rigid_cables:
+            moot = [e.name for e in self.effects.active()
+                    if e.name in ("pulley_friction", "pretension", "cable_elasticity", "tension_stiffening")]
+            if moot:
+                raise ValueError(f"effects {moot}: act on the cable elongation or tension law, which rigid "
+                                 "cables do not have")
         dt = DEFAULT_TIMESTEP if timestep is None else float(timestep)
         period = 1.0 / self.params.control.rate_hz
         nsub = int(round(period / dt)) if (math.isfinite(dt) and dt > 0) else 0
@@ -465,6 +476,7 @@ class Plant:
         self.data = mujoco.MjData(self.model)
         self._ix = ix = model_index(self.model)
         self._address = self.model._address
+        self.model.dof_damping[ix.dof_motor] = 0.0      # the static stand-in for eq (37); the callback applies it
 
         act, tp = self.params.actuation, self.true_params
         self._ratio = act.R / act.r_d                      # theta = ratio * s

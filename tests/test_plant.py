@@ -375,3 +375,20 @@ def test_motor_friction_effects_change_the_motion(params, effect):
     base = run(P.Plant(params), 100)[-1]
     other = run(P.Plant(params, effects=E.Effects.of(effect)), 100)[-1]
     assert np.abs(other.theta - base.theta).max() > 1e-3
+
+
+def test_rigid_cables_refuse_cable_effects(params):
+    with pytest.raises(ValueError, match="pretension"):
+        P.Plant(params, effects=E.Effects.of(E.Pretension(1e-3)), rigid_cables=True)
+
+
+@pytest.mark.parametrize("n", [1, 5])
+def test_other_neck_lengths_run(n):
+    p = default_params(n)
+    pl = P.Plant(p)
+    pl.reset(np.radians(np.linspace(-10, 10, n)))
+    for _ in range(200):
+        pl.step(np.full(n + 1, 20.0))
+    tr = pl.truth()
+    assert tr.alpha.shape == (n,) and tr.tension.shape == (n + 1,)
+    assert tr.loop_gap < 1e-4 and np.all(np.isfinite(tr.alpha)) and np.all(tr.tension > 0)
