@@ -223,7 +223,7 @@ def _stages(q: int) -> list[int]:
 def _antialias(q: int) -> signal.dlti:
     """scipy.signal.decimate's default filter (Chebyshev I, order 8, 0.05 dB, 0.8/q) with DC gain 1."""
     b, a = signal.cheby1(8, 0.05, 0.8 / q)
-    return signal.dlti(b, a)
+    return signal.dlti(b * (a.sum() / b.sum()), a)
 
 
 def decimate(x, q: int, axis: int = 0) -> np.ndarray:
