@@ -23,7 +23,6 @@ The metrics are the paper's (§7, Table 3), in degrees, averaged over every samp
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from dataclasses import dataclass, field
 from typing import Any
@@ -99,8 +98,8 @@ class RunResult:
         return {"info": self.info, "metrics": self.metrics.as_dict(), "log": self.log_path}
 
     def write_json(self, path) -> None:
-        from neck_sim.params import atomic_write_bytes
-        atomic_write_bytes(path, (json.dumps(self.summary(), indent=2) + "\n").encode())
+        from neck_sim.atomic import atomic_write_json
+        atomic_write_json(path, self.summary())
 
 
 def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, camera_t, camera_alpha) -> Metrics:

@@ -18,12 +18,13 @@ import dataclasses
 import json
 import math
 import os
-import tempfile
 import tomllib
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
 import numpy as np
+
+from neck_sim.atomic import atomic_write_bytes  # re-exported: the historical home
 
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
@@ -358,24 +359,6 @@ def from_dict(data: Mapping[str, Any], base: NeckParams | None = None) -> NeckPa
         current.update(data.get(grp, {}))
         groups[grp] = cls(**current)
     return NeckParams(**groups)
-
-
-def atomic_write_bytes(path: str | os.PathLike, payload: bytes) -> None:
-    """Write ``payload`` to ``path`` through a temporary file and a rename (never half-written)."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def save(params: NeckParams, path: str | os.PathLike) -> None:

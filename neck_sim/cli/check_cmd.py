@@ -11,15 +11,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    import json
 
     from neck_sim.check import check_log
-    from neck_sim.params import atomic_write_bytes
+    from neck_sim.atomic import atomic_write_json
 
     result = check_log(args.log)
     print(f"{args.log}: model constants from the {result.params_source}")
     print(result.table())
     print("all relations within tolerance" if result.passed else "some relations exceed their tolerance")
     if args.json:
-        atomic_write_bytes(args.json, (json.dumps(result.as_dict(), indent=2) + "\n").encode())
+        atomic_write_json(args.json, result.as_dict())
     return 0 if result.passed else 1

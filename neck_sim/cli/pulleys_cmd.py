@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 
 from neck_sim import params as P
+from neck_sim.atomic import atomic_write_json
 from neck_sim.pulley_study import pulley_effect
 
 HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increments 13 percent)"
@@ -25,5 +25,5 @@ def run(args) -> int:
     print(f"{'eq (35) increment |da - da0| / |da|':<44} {100 * eff.increment_rel_diff:8.1f}% "
           f"{100 * eff.increment_rel_diff_median:7.1f}% {'13%':>6}")
     if args.json:
-        P.atomic_write_bytes(args.json, json.dumps(eff._asdict(), indent=2).encode())
+        atomic_write_json(args.json, eff._asdict())
     return 0

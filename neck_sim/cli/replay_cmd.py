@@ -37,6 +37,7 @@ def run(args) -> int:
     import math
 
     from neck_sim import params as P
+    from neck_sim.atomic import atomic_write_json
     from neck_sim.effects import Effects
     from neck_sim.replay import replay
 
@@ -60,7 +61,7 @@ def run(args) -> int:
         data = {"steps": len(res.t), "max_theta_drift_rad": res.max_theta_drift().tolist(),
                 "max_alpha_drift_rad": None if alpha is None else alpha.tolist(), "notes": list(res.notes),
                 "changes": {k: list(v) if isinstance(v, tuple) else v for k, v in changes.items()}, "output": output}
-        P.atomic_write_bytes(args.json, (json.dumps(data, indent=2) + "\n").encode())
+        atomic_write_json(args.json, data)
     if args.max_alpha_drift is not None:
         if alpha is None:
             raise ValueError(f"{args.log}: no /neck/truth, alpha drift cannot be measured")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 
 HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
@@ -102,9 +101,9 @@ def run(args) -> int:
         if res.log_path:
             print(f"log ({label}): {res.log_path}")
     if args.json:
-        from neck_sim.params import atomic_write_bytes
+        from neck_sim.atomic import atomic_write_json
         payload = {label: res.summary() for label, res in labelled.items()}
-        atomic_write_bytes(args.json, (json.dumps(payload, indent=2) + "\n").encode())
+        atomic_write_json(args.json, payload)
         print(f"metrics: {args.json}")
     if args.plots:
         from controllers.plots import save_run_plots

@@ -18,11 +18,11 @@ import math
 import os
 import platform
 import sys
-import tempfile
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from neck_sim.atomic import discard, publish, temp_file_beside
 from neck_sim.logs import foxglove
 from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TopicSpec, neck_metadata,
                                     topic_schema)
@@ -83,9 +83,7 @@ class LogWriter:
         self.params = default_params(3) if params is None else params
         self._n = self.params.n_joints
         self._viz_period_ns = int(round(1e9 / visualization_rate_hz)) if visualization_rate_hz > 0 else None
-        directory = os.path.dirname(os.path.abspath(self.path))
-        os.makedirs(directory, exist_ok=True)
-        fd, self._tmp = tempfile.mkstemp(prefix=".tmp-", suffix="-" + os.path.basename(self.path), dir=directory)
+        fd, self._tmp = temp_file_beside(self.path)
         self._fh = os.fdopen(fd, "wb")
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library=f"neck-sim {_version('neck-sim')}")
@@ -122,7 +120,7 @@ class LogWriter:
             self._fh.flush()
             os.fsync(self._fh.fileno())
             self._fh.close()
-            os.replace(self._tmp, self.path)
+            publish(self._tmp, self.path)
         except BaseException:
             self._discard()
             raise
@@ -137,8 +135,7 @@ class LogWriter:
         try:
             self._fh.close()
         finally:
-            if os.path.exists(self._tmp):
-                os.unlink(self._tmp)
+            discard(self._tmp)
 
     # -- contract topics ---------------------------------------------------------------------
     def motors(self, t: float, theta, force) -> None:
