@@ -50,7 +50,7 @@ from neck_sim.analytic import elongation
 from neck_sim.params import NeckParams
 
 __all__ = ["Measurements", "PreprocessSettings", "CutoffChoice", "FastSignals", "Prepared",
-           "residual_cutoff", "lowpass", "decimation_factor", "decimate", "prepare"]
+           "residual_cutoff", "lowpass", "decimation_factor", "decimate", "SlowChain", "prepare"]
 
 
 def _as_series(name: str, t, x, width: int | None, *, min_len: int = 2):
@@ -246,13 +246,43 @@ class FastSignals(NamedTuple):
     force: np.ndarray      # (T, N+1) N, as commanded
 
 
+class SlowChain(NamedTuple):
+    """How ``prepare`` takes a control-rate signal to the slow grid, to apply to any other signal.
+
+    Motor-cutoff low-pass at ``motor_rate_hz``, decimation by q (first ``n_grid`` samples), the
+    camera window ``idx``, the common-bandwidth low-pass (``common_hz``, None when not applied),
+    the trimming mask ``keep``.
+    """
+
+    motor_rate_hz: float
+    motor_hz: float
+    q: int
+    n_grid: int
+    idx: np.ndarray
+    common_hz: float | None
+    keep: np.ndarray
+    order: int
+
+    def after_lowpass(self, v) -> np.ndarray:
+        """The chain without its first low-pass (for signals already filtered and differentiated)."""
+        v = decimate(v, self.q)[: self.n_grid][self.idx]
+        if self.common_hz is not None:
+            v = lowpass(v, self.motor_rate_hz / self.q, self.common_hz, self.order)
+        return v[self.keep]
+
+    def __call__(self, v) -> np.ndarray:
+        """A control-rate signal (T, ...) to the slow grid (S, ...), exactly as theta and f are."""
+        return self.after_lowpass(lowpass(np.asarray(v, dtype=float), self.motor_rate_hz, self.motor_hz, self.order))
+
+
 @dataclass(frozen=True, eq=False)
 class Prepared:
     """Synchronised slow-grid signals for the identification models (all arrays (S, ...), SI).
 
     alpha* and x_c* are None when the log has no camera.  ``cutoffs`` maps "motors", "camera",
     "common" to a :class:`CutoffChoice`; ``fast`` holds control-rate signals, ``camera`` the raw
-    frames (t (K,), alpha (K, N)) or None.
+    frames (t (K,), alpha (K, N)) or None; ``chain`` (a :class:`SlowChain`) takes any other
+    control-rate signal to this grid the way theta and f were taken.
     """
 
     t: np.ndarray
@@ -272,6 +302,7 @@ class Prepared:
     cutoffs: dict = field(default_factory=dict)
     fast: FastSignals | None = None
     camera: tuple | None = None
+    chain: SlowChain | None = None
 
     @property
     def has_camera(self) -> bool:
@@ -321,18 +352,8 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     order = s.filter_order
 
     motor_cut = _cutoff(s.motor_cutoff_hz, meas.theta, fs, order)
-    dt = 1.0 / fs
-    theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
-    force_f = lowpass(meas.force, fs, motor_cut.hz, order)
-    theta_dot = np.gradient(theta_f, dt, axis=0)
-    theta_ddot = np.gradient(theta_dot, dt, axis=0)
-    fast = FastSignals(meas.t_motor, meas.theta, theta_dot, meas.force)
-
     t_grid = meas.t_motor[::q]
-    slow = {name: decimate(v, q)[: t_grid.size] for name, v in
-            (("theta", theta_f), ("theta_dot", theta_dot), ("theta_ddot", theta_ddot), ("force", force_f))}
     cutoffs = {"motors": motor_cut}
-
     lo, hi = t_grid[0], t_grid[-1]
     cam = None
     if meas.has_camera:
@@ -342,47 +363,44 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
             raise ValueError(f"camera: its frames ({tc[0]:.3f}..{tc[-1]:.3f} s) overlap the motor samples "
                              f"({t_grid[0]:.3f}..{t_grid[-1]:.3f} s) for too short a time")
         cam = (tc, ac)
-    inside = (t_grid >= lo) & (t_grid <= hi)
-    idx = np.nonzero(inside)[0]
+    idx = np.nonzero((t_grid >= lo) & (t_grid <= hi))[0]
     if idx.size < 64:
         raise ValueError(f"motors: only {idx.size} samples at {rate:.4g} Hz; identification needs a longer log")
+    t = t_grid[idx]
+    keep = (t >= t[0] + s.trim_s) & (t <= t[-1] - s.trim_s)
+    if np.count_nonzero(keep) < 32:
+        raise ValueError(f"log: {t[-1] - t[0]:.2f} s of usable data is too short after trimming "
+                         f"{s.trim_s} s at both ends")
     alpha = alpha_dot = alpha_ddot = None
     common = motor_cut.hz
     if cam is not None:
-        tg = t_grid[idx]
-        a_grid = np.stack([np.interp(tg, cam[0], cam[1][:, j]) for j in range(n)], axis=1)
+        a_grid = np.stack([np.interp(t, cam[0], cam[1][:, j]) for j in range(n)], axis=1)
         cam_cut = _cutoff(s.camera_cutoff_hz, a_grid, rate, order)
         cutoffs["camera"] = cam_cut
         alpha = lowpass(a_grid, rate, cam_cut.hz, order)
         common = min(common, cam_cut.hz)
-    for k in slow:
-        slow[k] = slow[k][idx]
-    if s.common_bandwidth and common < 0.5 * rate * 0.95:
-        for k in slow:
-            slow[k] = lowpass(slow[k], rate, common, order)
-        if alpha is not None and common < cutoffs["camera"].hz:
-            alpha = lowpass(alpha, rate, common, order)
     cutoffs["common"] = CutoffChoice(float(common), "min(motors, camera)" if cam is not None else "motors")
+    refilter = s.common_bandwidth and common < 0.5 * rate * 0.95
+    chain = SlowChain(fs, motor_cut.hz, q, t_grid.size, idx, common if refilter else None, keep, order)
+
+    theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
+    theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
+    theta_ddot = np.gradient(theta_dot, 1.0 / fs, axis=0)
+    fast = FastSignals(meas.t_motor, meas.theta, theta_dot, meas.force)
+    slow = {"theta": chain.after_lowpass(theta_f), "theta_dot": chain.after_lowpass(theta_dot),
+            "theta_ddot": chain.after_lowpass(theta_ddot), "force": chain(meas.force)}
     h = 1.0 / rate
     x_c = x_c_dot = x_c_ddot = None
     if alpha is not None:
+        if refilter and common < cutoffs["camera"].hz:
+            alpha = lowpass(alpha, rate, common, order)
+        alpha = alpha[keep]
         alpha_dot = np.gradient(alpha, h, axis=0)
         alpha_ddot = np.gradient(alpha_dot, h, axis=0)
         x_c = elongation(slow["theta"], alpha, params)
         x_c_dot = np.gradient(x_c, h, axis=0)
         x_c_ddot = np.gradient(x_c_dot, h, axis=0)
 
-    t = t_grid[idx]
-    keep = (t >= t[0] + s.trim_s) & (t <= t[-1] - s.trim_s)
-    if np.count_nonzero(keep) < 32:
-        raise ValueError(f"log: {t[-1] - t[0]:.2f} s of usable data is too short after trimming "
-                         f"{s.trim_s} s at both ends")
-
-    def cut(v):
-        return None if v is None else v[keep]
-
-    return Prepared(t=t[keep], theta=slow["theta"][keep], theta_dot=slow["theta_dot"][keep],
-                    theta_ddot=slow["theta_ddot"][keep], force=slow["force"][keep],
-                    alpha=cut(alpha), alpha_dot=cut(alpha_dot), alpha_ddot=cut(alpha_ddot),
-                    x_c=cut(x_c), x_c_dot=cut(x_c_dot), x_c_ddot=cut(x_c_ddot),
-                    motor_rate_hz=fs, rate_hz=rate, decimation=q, cutoffs=cutoffs, fast=fast, camera=cam)
+    return Prepared(t=t[keep], **slow, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot,
+                    x_c=x_c, x_c_dot=x_c_dot, x_c_ddot=x_c_ddot, motor_rate_hz=fs, rate_hz=rate, decimation=q,
+                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain)

@@ -134,3 +134,12 @@ def test_bad_measurements_are_refused(run, params):
     with pytest.raises(ValueError, match="parameters describe"):
         from neck_sim.params import default_params
         prepare(Measurements(t, th, f), default_params(4))
+
+
+def test_chain_takes_any_control_rate_signal_to_the_slow_grid(run, params):
+    prep = prepare(synthetic_measurements(run, params, np.random.default_rng(0)), params)
+    slow_wave = np.sin(2 * np.pi * 0.2 * run.t)[:, None] * np.array([1.0, -2.0])
+    on_grid = prep.chain(slow_wave)
+    assert on_grid.shape == (prep.n_samples, 2)
+    np.testing.assert_allclose(on_grid, np.sin(2 * np.pi * 0.2 * prep.t)[:, None] * np.array([1.0, -2.0]), atol=2e-3)
+    np.testing.assert_array_equal(prep.chain(run.force), prep.force)
