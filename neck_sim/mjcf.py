@@ -296,6 +296,10 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
     ET.SubElement(vis, "global", offwidth="1280", offheight="720", azimuth="90", elevation="0")
     ET.SubElement(vis, "scale", framelength="0.02", framewidth="0.002", jointlength="0.01",
                   jointwidth="0.002")
+    ET.SubElement(vis, "headlight", ambient="0.5 0.5 0.5", diffuse="0.6 0.6 0.6")
+    asset = ET.SubElement(root, "asset")
+    ET.SubElement(asset, "texture", name="sky", type="skybox", builtin="gradient", rgb1="1 1 1",
+                  rgb2="0.75 0.8 0.88", width="64", height="64")
     ET.SubElement(root, "statistic", center=_vec(0.0, 0.12, 0.0), extent="0.35")
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0", density="0")
