@@ -31,6 +31,7 @@ import numpy as np
 
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import Trajectory
+from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "Metrics", "RunResult", "run_closed_loop", "compute_metrics"]
 
@@ -176,8 +177,9 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
         plant.reset(alpha0=alpha0)
     controller.reset(alpha0, plant.encoders())
 
-    info = {"trajectory": trajectory.name, "duration_s": trajectory.duration, "law": int(controller.law),
-            "controller": controller.describe(), "rate_hz": rate, **(run_info or {})}
+    # The plant's seed, effects and parameters make `neck-sim replay` of this log exact.
+    info = {**plant_run_info(plant), "trajectory": trajectory.name, "duration_s": trajectory.duration,
+            "law": int(controller.law), "controller": controller.describe(), "rate_hz": rate, **(run_info or {})}
     rec = {name: np.empty((steps,) + shape) for name, shape in (
         ("t", ()), ("alpha_hat", (n,)), ("theta", (n + 1,)), ("force", (n + 1,)), ("requested", (n + 1,)),
         ("elongation_hat", (n + 1,)), ("gamma", (n,)), ("alpha", (n,)), ("alpha_dot", (n,)),

@@ -203,3 +203,18 @@ def test_table3_layout():
     assert rows[2].startswith("with pulleys") and rows[3].startswith("without pulleys")
     assert "e_a 1.00 (0.35), e 0.00 (0.08)" in rows[2] and "e_a 2.00 (1.68), e 0.10 (0.11)" in rows[2]
     assert "e_a 3.00 (2.00), e 0.20 (0.21)" in rows[3] and "e_a 4.00 (2.88), e 0.30 (0.26)" in rows[3]
+
+
+def test_closed_loop_log_replays_exactly_with_hidden_effects(params, tmp_path):
+    """The runner records the plant (seed, effects, parameters), so replay rebuilds it exactly."""
+    from neck_sim.effects import Effects, Payload
+    from neck_sim.replay import replay
+
+    traj = control_test_trajectory(params, move_time=0.4, hold_time=0.1)
+    plant = Plant(params.replace(**{"friction.c_s": 0.7}), effects=Effects(payload=Payload(mass=0.03)), seed=11)
+    path = tmp_path / "run.mcap"
+    run_closed_loop(plant, ComputedTorqueController(params, 2), traj, progress=False, log_path=path)
+    res = replay(path)
+    np.testing.assert_array_equal(res.theta, res.theta_log)
+    np.testing.assert_allclose(res.alpha, res.alpha_log, atol=1e-12)
+    assert not res.notes
