@@ -19,6 +19,7 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -91,13 +92,19 @@ def _assemble_lengths(seg: _Segments, n: int) -> np.ndarray:
     return np.concatenate([right, left[..., None]], axis=-1)
 
 
+@functools.lru_cache(maxsize=None)
+def _z_indices(n: int):
+    """(rows, cols) of joints i passed by right cables j > i, and the diagonal indices."""
+    rows, cols = np.triu_indices(n, 1)
+    return rows, cols, np.arange(n)
+
+
 def _assemble_z(seg: _Segments, n: int, order: int) -> np.ndarray:
     """-(d^order l_c / d alpha^order) arranged as an (..., N, N+1) matrix (order 1 or 2)."""
     dd, db, dc, da = seg.d[order], seg.b[order], seg.c[order], seg.a[order]
     out = np.zeros(db.shape[:-1] + (n, n + 1))
-    rows, cols = np.triu_indices(n, 1)                    # joint i passed by right cable j > i
+    rows, cols, idx = _z_indices(n)
     out[..., rows, cols] = -dd[..., rows]
-    idx = np.arange(n)
     out[..., idx, idx] = -db
     out[..., : n - 1, n] = -dc[..., : n - 1]
     out[..., n - 1, n] = -da[..., n - 1]

@@ -27,7 +27,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths, transmission_matrix
-from neck_sim.analytic.geometry import _cross, _joint_local, check_alpha, forward_kinematics
+from neck_sim.analytic.geometry import _cross, _joint_local, _vec2, check_alpha, forward_kinematics
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
@@ -86,10 +86,10 @@ def linkage_dynamics(alpha, alpha_dot, params: NeckParams) -> LinkageDynamics:
     def rot(v, extra=0):  # R(phi_i) v for v of shape (..., N, [3,] 2)
         cc = cphi.reshape(cphi.shape + (1,) * extra)
         ss = sphi.reshape(sphi.shape + (1,) * extra)
-        return np.stack([cc * v[..., 0] - ss * v[..., 1], ss * v[..., 0] + cc * v[..., 1]], -1)
+        return _vec2(cc * v[..., 0] - ss * v[..., 1], ss * v[..., 0] + cc * v[..., 1])
 
     def turn(v):  # S v: rotation by +90 deg
-        return np.stack([-v[..., 1], v[..., 0]], -1)
+        return _vec2(-v[..., 1], v[..., 0])
 
     Rm, Rdm, Rddm = rot(m), rot(dm), rot(ddm)
     lt = np.tril(np.ones((n, n)), -1)                             # lt[i, k] = 1 if k < i

@@ -75,7 +75,7 @@ def rotation(phi) -> np.ndarray:
     """2-D rotation matrices, shape (..., 2, 2)."""
     phi = np.asarray(phi, dtype=float)
     c, s = np.cos(phi), np.sin(phi)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+    return np.stack([_vec2(c, -s), _vec2(s, c)], -2)
 
 
 def _cross(u, v):
@@ -94,23 +94,28 @@ class _JointLocal(NamedTuple):
     ddD: np.ndarray
 
 
+def _vec2(x, y) -> np.ndarray:
+    """Stack two equally shaped arrays on a new last axis (cheaper than np.stack for small arrays)."""
+    x = np.asarray(x)
+    out = np.empty(np.broadcast_shapes(x.shape, np.shape(y)) + (2,))
+    out[..., 0] = x
+    out[..., 1] = y
+    return out
+
+
 def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
     sd = _sides(a, b, L)
     s, c = np.sin(a / 2), np.cos(a / 2)
-    e = np.stack([-s, c], -1)                 # side direction
-    de = np.stack([-c / 2, -s / 2], -1)
-    dde = np.stack([s / 4, -c / 4], -1)
-    A = np.stack([np.full_like(a, -b / 2), np.zeros_like(a)], -1)
-    ll, dll, ddll = sd.l_l[..., None], sd.dl_l[..., None], sd.ddl_l[..., None]
-    C = A + ll * e
-    dC = dll * e + ll * de
-    ddC = ddll * e + 2 * dll * de + ll * dde
-    top = np.stack([np.cos(a), np.sin(a)], -1)
-    dtop = np.stack([-np.sin(a), np.cos(a)], -1)
-    D = C + b * top
-    dD = dC + b * dtop
-    ddD = ddC - b * top
-    return _JointLocal(sd, C, dC, ddC, D, dD, ddD)
+    ca, sa = np.cos(a), np.sin(a)
+    ll, dll, ddll = sd.l_l, sd.dl_l, sd.ddl_l
+    # C = A + l_l e with side direction e = (-s, c); D = C + b (cos a, sin a)
+    cx, cy = -b / 2 - ll * s, ll * c
+    dcx, dcy = -dll * s - ll * c / 2, dll * c - ll * s / 2
+    ddcx = -ddll * s - dll * c + ll * s / 4
+    ddcy = ddll * c - dll * s - ll * c / 4
+    return _JointLocal(sd, _vec2(cx, cy), _vec2(dcx, dcy), _vec2(ddcx, ddcy),
+                       _vec2(cx + b * ca, cy + b * sa), _vec2(dcx - b * sa, dcy + b * ca),
+                       _vec2(ddcx - b * ca, ddcy - b * sa))
 
 
 def joint_corners(alpha, params: NeckParams) -> np.ndarray:
