@@ -144,6 +144,7 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
 #: Test magnitudes per effect (the "medium" level); the detection benchmark scales them.
 MAGNITUDES = {
     "dry_friction": 12.0,            # N, f_s on one cable (baseline without friction)
+    "dry_friction:tanh": 12.0,       # N, the same with a tanh-smoothed sign
     "viscous_friction": 0.15,        # N s/rad at the motor shaft
     "stribeck_friction": 8.0,        # N of extra breakaway friction
     "pulley_friction": 0.15,         # fraction of the tension
@@ -197,6 +198,14 @@ def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams |
     joints: tuple = ()
     if name == "none":
         return BlindCase(name, p, Effects(), model, "none", (), (), 0.0, "no hidden effect (noise only)")
+    if name == "dry_friction:tanh":
+        # a tanh-smoothed sign (the plant's Stribeck term with an infinite Stribeck speed), one cable
+        smooth = float(rng.uniform(0.2, 1.0))
+        plant = p.replace(**{"friction.f_s": (0.0,) * n1})
+        eff = Effects(stribeck_friction=StribeckFriction(df=mag, speed=1e6, smoothing=smooth, cables=(cable,)))
+        desc = f"dry friction {mag:.2f} N with a tanh sign (smoothing {smooth:.2f} rad/s) on cable {cable + 1} only"
+        return BlindCase(name, plant, eff, ("cable_elasticity", "tension_stiffening"), "dry_friction", cables, (),
+                         mag, desc)
     if name == "dry_friction":
         # a sharper sign than eq (37)'s c_s = 0.5, on one cable only, against a friction-free model
         cs = float(rng.uniform(2.0, 6.0))
@@ -240,19 +249,25 @@ def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams |
         cables = ()
         desc = f"actuation delay {1e3 * mag:.1f} ms"
     elif name == "pretension":
+        # on a right cable: the long left cable is soft and stiffens strongly (lambda x_0 ~ 0.2), so
+        # its k and lambda absorb an offset of a few mm within the noise (see the detection benchmark)
+        cable = int(rng.integers(n1 - 1))
+        cables = (cable,)
         eff = Effects(pretension=Pretension(elongation=mag, cables=(cable,)))
         desc = f"pretension {1e3 * mag:.2f} mm on cable {cable + 1}"
     else:
-        raise ValueError(f"unknown effect {name!r} (known: none, {', '.join(MAGNITUDES)})")
+        raise ValueError(f"unknown blind case {name!r} (known: {', '.join(CASES)})")
     return BlindCase(name, p, eff, model, name, cables, joints, mag, desc)
 
 
+#: Every blind case: the noise-only control, then one per effect (and per variant form).
 CASES = ("none",) + tuple(MAGNITUDES)
 
 
-def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None, progress: bool = False):
+def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None, progress: bool = False,
+              write_truth: bool = False):
     """(case, log path): :func:`hidden_effect` simulated by :func:`run_log` with camera seed ``seed``."""
     case = hidden_effect(name, seed, level)
     run_log(path, case.params, case.effects, trajectory=trajectory, seed=seed, progress=progress,
-            run_info={"hidden": case.description})
+            run_info={"hidden": case.description}, write_truth=write_truth)
     return case, os.fspath(path)

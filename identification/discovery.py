@@ -172,8 +172,9 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def split_samples(t: np.ndarray, activity: np.ndarray, settings: DiagnosisSettings = DiagnosisSettings()) -> Split:
-    """Contiguous blocks of ``moves_per_block`` moves cut at the middle of holds, assigned to
-    ``holdout_every`` folds in turn (block i -> fold i mod K).
+    """Contiguous blocks of ``moves_per_block`` moves (fewer if that leaves less than two blocks
+    per fold) cut at the middle of holds, assigned to ``holdout_every`` folds in turn (block i ->
+    fold i mod K).
 
     ``activity`` (S,) is the motor-speed norm; a hold is a run of at least 0.15 s below 10 % of
     its 95th percentile.  A log with too few holds for 2 K blocks is cut into 2 K equal blocks,
@@ -187,7 +188,8 @@ def split_samples(t: np.ndarray, activity: np.ndarray, settings: DiagnosisSettin
     quiet = act < 0.1 * np.percentile(act, 95)
     holds = [(a, b) for a, b in _runs(quiet) if (b - a) / rate >= 0.15]
     centres = [(a + b) // 2 for a, b in holds if a > 0 and b < S]
-    m = settings.moves_per_block
+    # fewer moves per block when the log is short: at least two blocks per fold
+    m = max(1, min(settings.moves_per_block, (len(centres) + 1) // (2 * K)))
     cuts = centres[m - 1::m]
     method = f"blocks of {m} moves cut in holds, {K} folds"
     if len(cuts) + 1 < 2 * K:
