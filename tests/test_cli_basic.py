@@ -38,3 +38,24 @@ def test_top_level_help_lists_every_command(capsys):
     out = capsys.readouterr().out
     for name in COMMANDS:
         assert name in out
+
+
+def test_shared_params_options(tmp_path):
+    import argparse
+
+    import pytest
+
+    from neck_sim import params as P
+    from neck_sim.cli.common import add_params_arguments, params_from_args
+
+    parser = argparse.ArgumentParser()
+    add_params_arguments(parser)
+    path = tmp_path / "five.toml"
+    P.save(P.default_params(5), path)
+    assert params_from_args(parser.parse_args([])).n_joints == 3
+    assert params_from_args(parser.parse_args(["--n-joints", "4"])).n_joints == 4
+    assert params_from_args(parser.parse_args(["--params", str(path)])).n_joints == 5
+    with pytest.raises(ValueError, match="contradicts"):
+        params_from_args(parser.parse_args(["--params", str(path), "--n-joints", "3"]))
+    with pytest.raises(ValueError, match="n-joints"):
+        params_from_args(parser.parse_args(["--n-joints", "0"]))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from neck_sim.cli.common import add_params_arguments, params_from_args
+
 import os
 
 HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
@@ -30,20 +32,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--cable-model", choices=("inextensible", "constant", "variable"),
                         help="override the law's estimator cable model")
     parser.add_argument("--t-min", type=float, metavar="N", help="minimal cable tension of eq (65) (default 8.5 N)")
-    parser.add_argument("--params", metavar="FILE", help="parameter file (.json/.toml) for plant and controller")
-    parser.add_argument("--n-joints", type=int, default=None, help="number of X-joints (default 3)")
+    add_params_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, help="camera-noise seed")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
-
-def _params(args):
-    from neck_sim import params as P
-    if args.params:
-        p = P.load(args.params)
-        if args.n_joints is not None and args.n_joints != p.n_joints:
-            raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {p.n_joints})")
-        return p
-    return P.default_params(3 if args.n_joints is None else args.n_joints)
 
 
 def _log_namer(args, trajectory: str, several: bool):
@@ -65,7 +57,7 @@ def run(args) -> int:
     from controllers import experiments as ex
     from controllers.trajectories import make_trajectory
 
-    params = _params(args)
+    params = params_from_args(args)
     if args.table3 and (args.rigid_cables or args.no_pulleys):
         raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")
     laws = args.law or [2]
