@@ -97,6 +97,9 @@ def _render_xml(xml: str) -> str:
     if asset is None:
         asset = ET.Element("asset")
         root.insert(1, asset)
+    for tex in asset.findall("texture"):          # the model's own sky (for the viewer) would win
+        if tex.get("type") == "skybox":
+            asset.remove(tex)
     rgb = " ".join(str(c) for c in _BACKGROUND)
     ET.SubElement(asset, "texture", type="skybox", builtin="flat", rgb1=rgb, rgb2=rgb, width="16", height="16")
     world = root.find("worldbody")
