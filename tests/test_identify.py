@@ -122,3 +122,29 @@ def test_command_writes_tables_json_and_figures(measured_log, tmp_path, capsys):
     assert sorted(f.name for f in plots.iterdir()) == [
         "fig4_torques.png", "fig5_tension_constant.png", "fig6_tension_error.png", "fig7_tension_variable.png",
         "fig8_alpha.png"]
+
+
+def test_sampled_reference_reproduces_a_cycloidal_trajectory():
+    from identification.simulator import SampledTrajectory
+    from neck_sim.trajectory import cycloidal_path
+
+    traj = cycloidal_path([np.zeros(3), np.radians([40.0, -30.0, 20.0]), np.zeros(3)], 2.5, 0.5)
+    t = np.arange(0.0, traj.duration, 0.002)
+    ref = SampledTrajectory.from_samples(t + 12.0, traj.sample(t).alpha)     # logged times need not start at 0
+    inner = t[50:-50]
+    want, got = traj.sample(inner), ref.sample(inner)
+    np.testing.assert_allclose(got.alpha, want.alpha, atol=1e-9)
+    np.testing.assert_allclose(got.alpha_dot, want.alpha_dot, atol=1e-6)
+    np.testing.assert_allclose(got.alpha_ddot, want.alpha_ddot, atol=1e-3)
+
+
+def test_identified_simulator_predicts_forces_better_than_the_rigid_frictionless_one(identified, measured_log):
+    from identification.simulator import compare_simulators
+    from neck_sim.logs import read_log
+
+    head = read_log(measured_log, end=6.0, topics=("motors", "camera", "reference"))
+    cmp = compare_simulators(head, identified, law=1, progress=False)
+    rigid, ident = cmp.rows["rigid, no friction"], cmp.rows["identified"]
+    assert ident["force"] < rigid["force"]
+    assert ident["theta"] < rigid["theta"]
+    assert "identified" in cmp.table() and set(cmp.series) == {"measured", "rigid, no friction", "identified"}
