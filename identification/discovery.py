@@ -1,46 +1,53 @@
 """Discrepancy discovery: what the model gets wrong, which effect causes it, and the gain of adding it.
 
-``diagnose(log)`` reads only the measured topics of a log (motors, camera) and its ``neck`` record
-and runs, from a baseline model (the paper's: arctan friction + variable-stiffness cables, or any
-:class:`~identification.candidates.ModelSpec`):
+``diagnose_log(log)`` reads only the measured topics of a log (motors, camera) and its ``neck``
+record and runs, from a baseline model (the paper's: arctan friction + variable-stiffness cables,
+or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25):
 
-1. **Split** the slow-grid samples into contiguous blocks of about three moves, cut in the middle
-   of holds (holds are found from the motor speeds), and hold out every third block
-   (:func:`split_samples`).  Never at random: neighbouring samples are correlated.
-2. **Baseline**: fit the model on the training blocks (:func:`identification.candidates.fit_model`)
-   and evaluate its residuals everywhere -- joint torque (eq 51), cable tension (eq 42/54, N) and
-   elongation (m), alpha_hat against the camera (eq 35 with the model's elongation), and an
-   open-loop re-simulation of the plant driven by the logged forces.
-3. **Candidates**: every effect of the vocabulary not yet in the model (and whose prerequisite is),
-   added to the model with its parameters per cable where it is per cable, its shape parameters
-   chosen on the training blocks from a small grid (a golden-section search for the delay), and
-   scored on the held-out blocks.
+1. **Split** (:func:`split_samples`) the slow-grid samples into contiguous blocks of about three
+   moves (half a §5.2.2 sequence), cut in the middle of holds found from the motor speeds, and
+   deal the blocks to K = 3 folds in turn.  Never at random: neighbouring samples are correlated.
+   Residuals are **cross-validated**: each block is predicted by the model fitted on the other
+   folds, so every sample is held out once.  The *primary* split (train on folds 0 and 2, hold
+   out fold 1) gives the parameters, the shape searches, the training F-test, the written model
+   and the alpha_hat and re-simulation comparisons.
+2. **Baseline**: fit the model (:func:`identification.candidates.fit_model`) and evaluate its
+   residuals -- joint torque (eq 51), cable tension (eq 42/54, N) and elongation (m) --,
+   alpha_hat against the camera (eq 35 with the model's elongation) and an open-loop
+   re-simulation of the plant driven by the logged forces.
+3. **Candidates**: every effect of the vocabulary not yet in the model (and whose prerequisite
+   is: Stribeck needs dry friction, stiffening and pretension need elastic cables), added with
+   its parameters per cable where it is per cable, its shape parameters chosen on the training
+   folds (a grid refined by golden-section search; a bounded search per cable for the rest
+   elongation), then cross-validated.
 4. **Score** ``S`` = mean over channels (N torque + N+1 elongation channels) of the mean square
-   residual divided by the square of the baseline's training RMS of that channel: the baseline
-   scores 1 on its training data, an effect that removes half of one channel's error everywhere
-   improves S by 1/(2N+1) x 3/4.  A candidate is **significant** when all three hold:
+   residual divided by the square of the baseline's primary training RMS of that channel.  A
+   candidate is **significant** when all of these hold:
 
-   * held-out improvement ``1 - S_cand / S_base >= min_improvement`` (default 2 %);
-   * a one-sided Wilcoxon signed-rank test over held-out chunks of ``chunk_s`` (0.25 s) of the
-     per-chunk score reductions gives p < ``alpha`` (default 1e-3);
-   * a training F-test that counts the added parameters (linear ones plus searched shape
-     parameters) with an effective sample count of one per 1/(2 f_c) seconds per channel
-     (f_c: the common filter cutoff) gives p < ``alpha``.
+   * cross-validated (held-out) improvement ``1 - S_cand / S_base >= min_improvement`` (2 %);
+   * a one-sided Wilcoxon signed-rank test of the per-chunk score reductions over chunks of
+     ``chunk_s`` (0.25 s, within blocks) gives p < ``alpha`` (0.01);
+   * a training F-test counting the added parameters (linear ones plus searched shape
+     parameters), with one effective sample per 1/(2 f_c) s per channel (f_c: the common filter
+     cutoff: the residuals are low-passed), gives p < ``alpha``;
+   * its fitted magnitudes have the physical sign (a friction that helps the motion is a shape
+     correction of another friction, not this effect).
 
-   The verdict is the significant candidate with the largest held-out improvement, ``none`` when
-   there is none.  **Look-alikes** are then settled by an encompassing test: the best candidate A
-   and each other significant candidate B are fitted together; if B adds nothing significant to A
-   but A adds to B, A stands; if A adds nothing to B but B adds to A, B replaces A; if neither
-   adds to the other, the data cannot tell them apart and the verdict lists both (ambiguous).
-5. **Extension and gain**: the model plus the verdict is re-fitted, written as plant parameters
-   and effects (:func:`identification.candidates.plant_model`), and compared with the baseline on
-   the held-out blocks: residual RMS per type, alpha_hat error against the camera, re-simulation
+   The verdict is the significant candidate with the largest improvement, ``none`` when there is
+   none.  **Look-alikes** are settled by an encompassing test: the leader A and each other
+   significant candidate B are fitted together; if B adds nothing significant to A but A adds to
+   B, A stands; if A adds nothing to B but B adds to A, B replaces A; if neither adds to the other
+   the data cannot tell them apart and the verdict lists both (ambiguous), never a guess.
+5. **Extension and gain**: the model plus the verdict is written as plant parameters and effects
+   (:func:`identification.candidates.plant_model`) and compared with the baseline on held-out
+   data: cross-validated residual RMS per type, alpha_hat error against the camera, re-simulation
    error in theta and alpha.  Forward selection repeats 3-5 from the extended model until nothing
    significant remains (at most ``max_steps`` findings).
 
 The result (:class:`Diagnosis`) has ``to_dict()`` with the stable fields ``verdict`` (an effect
 name, a list of names when ambiguous, or "none"), ``findings`` (ordered; each with ``effect``,
-``cables``, ``parameters``, ``evidence``, ``gain``) and ``baseline``.
+``cables``, ``parameters``, ``evidence``, ``gain``) and ``baseline`` (plus ``final``,
+``extended_model``, ``steps``, ``split``, ``method``).
 """
 
 from __future__ import annotations
@@ -113,7 +120,7 @@ class DiagnosisSettings:
     holdout_every: int = 3
     chunk_s: float = 0.25
     min_improvement: float = 0.02
-    alpha: float = 1e-3
+    alpha: float = 0.01
     max_steps: int = 3
     candidates: tuple = EFFECTS
     resimulate: bool = True
@@ -852,10 +859,10 @@ METHOD = {
              "split trains on folds 0 and 2 and holds fold 1 out (alpha_hat, re-simulation, written model)",
     "score": "S = mean over channels (N torque, N+1 elongation) of mean square residual / (primary baseline "
              "training RMS)^2",
-    "significance": "cross-validated improvement 1 - S_cand/S_base >= min_improvement, one-sided Wilcoxon "
-                    "signed-rank test over 0.25 s chunks p < alpha, training F-test counting the added linear "
-                    "and searched shape parameters (one effective sample per 1/(2 f_c) s per channel) p < "
-                    "alpha, fitted magnitudes of physical sign",
+    "significance": "cross-validated improvement 1 - S_cand/S_base >= min_improvement (0.02), one-sided "
+                    "Wilcoxon signed-rank test over 0.25 s chunks p < alpha (0.01), training F-test counting the "
+                    "added linear and searched shape parameters (one effective sample per 1/(2 f_c) s per "
+                    "channel) p < alpha, fitted magnitudes of physical sign",
     "look_alikes": "encompassing test between the leader and every other significant candidate: fitted "
                    "together, the one that adds nothing significant to the other is dropped; if neither adds, "
                    "the verdict lists both (ambiguous)",

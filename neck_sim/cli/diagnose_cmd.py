@@ -22,7 +22,7 @@ def add_arguments(parser) -> None:
                         help="forward selection: at most K findings (default 3; 1 = the verdict only)")
     parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
     parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
-    parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the tests (default 1e-3)")
+    parser.add_argument("--alpha", type=float, default=0.01, help="significance level of the tests (default 0.01)")
     parser.add_argument("--min-improvement", type=float, default=0.02,
                         help="smallest held-out score improvement that counts (default 0.02)")
     parser.add_argument("--candidates", default=None,

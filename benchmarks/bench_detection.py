@@ -1,0 +1,213 @@
+"""Detection power of ``neck-sim diagnose`` (issue 7, item 7).
+
+For every blind case of :mod:`identification.blind` (each effect of the vocabulary, its variant
+forms, and the noise-only control) x seeds x magnitude levels (fractions of the test magnitudes
+``identification.blind.MAGNITUDES``), simulate a 20.8 s identification-like log, diagnose it blind
+(one step, the fast path of the tests) and record the verdict.  Prints Markdown:
+
+* the confusion matrix (hidden effect x verdict) per level;
+* per effect, the detection limit: the smallest level (and magnitude) from which every seed is
+  named correctly at that level and all higher ones;
+* false alarms on the noise-only controls;
+* the time of a whole diagnosis (3 forward steps, alpha_hat, re-simulations) of a 60 s log on one
+  core, next to the paper's identification (``identification.paper.identify_log``) of the same
+  log measured in the same run (the ratio is the number to compare between machines).
+
+Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5,1] [--workers 2]
+[--negatives 6] [--json PATH] [--skip-timing]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+
+def _one(job):
+    name, seed, level, directory = job
+    from identification.blind import MAGNITUDES, make_case
+    from identification.discovery import DiagnosisSettings, diagnose_log
+
+    path = os.path.join(directory, f"{name.replace(':', '_')}_{seed}_{level}.mcap")
+    t0 = time.perf_counter()
+    case, _ = make_case(name, seed, path, level=level)
+    t_sim = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    diag = diagnose_log(path, model=",".join(case.model) or "rigid",
+                        settings=DiagnosisSettings(max_steps=1, resimulate=False, alpha_hat=False))
+    t_diag = time.perf_counter() - t0
+    os.unlink(path)
+    v = diag.verdict
+    f = diag.findings[0] if diag.findings else None
+    where = None
+    if f is not None:
+        where = f.get("joints") or f.get("cables")
+    truth_where = [j + 1 for j in case.joints] or [c + 1 for c in case.cables] or None
+    return {"case": name, "seed": seed, "level": level, "expect": case.expect, "magnitude": case.magnitude,
+            "nominal_magnitude": MAGNITUDES.get(name, 0.0) * level, "description": case.description,
+            "verdict": v if isinstance(v, str) else "ambiguous:" + "+".join(v),
+            "improvement": f["evidence"]["holdout_improvement"] if f else
+            max((c.improvement for c in diag.steps[0].candidates), default=0.0),
+            "located": (where == truth_where) if (f and truth_where and case.expect in ("dry_friction",
+                                                   "viscous_friction", "stribeck_friction", "pulley_friction",
+                                                   "pretension", "spring_error")) else None,
+            "t_sim": t_sim, "t_diag": t_diag}
+
+
+def _units(name: str) -> str:
+    return {"dry_friction": "N", "dry_friction:tanh": "N", "viscous_friction": "N s/rad", "stribeck_friction": "N",
+            "pulley_friction": "", "cable_elasticity": "x Table 2 k", "tension_stiffening": "x Table 2 lambda",
+            "payload": "kg", "spring_error": "relative", "actuation_delay": "s", "pretension": "m"}.get(name, "")
+
+
+def confusion_tables(results, levels) -> str:
+    from identification.candidates import EFFECTS
+
+    cols = ["none"] + list(EFFECTS) + ["ambiguous"]
+    short = {"none": "none", "dry_friction": "dry", "viscous_friction": "visc", "stribeck_friction": "strib",
+             "pulley_friction": "pulley", "cable_elasticity": "elast", "tension_stiffening": "stiff",
+             "payload": "payload", "spring_error": "spring", "actuation_delay": "delay", "pretension": "pret",
+             "ambiguous": "ambig"}
+    out = []
+    cases = list(dict.fromkeys(r["case"] for r in results))
+    for level in levels:
+        rows = [r for r in results if r["level"] == level or r["case"] == "none"]
+        out.append(f"\n**Confusion matrix at level {level:g} x the test magnitude** (rows: hidden, columns: verdict; "
+                   f"counts over seeds)\n")
+        out.append("| hidden \\ verdict | " + " | ".join(short[c] for c in cols) + " |")
+        out.append("|---" * (len(cols) + 1) + "|")
+        for case in cases:
+            rs = [r for r in rows if r["case"] == case]
+            if case == "none" and level != levels[-1]:
+                continue
+            counts = {c: 0 for c in cols}
+            for r in rs:
+                key = "ambiguous" if r["verdict"].startswith("ambiguous") else r["verdict"]
+                counts[key] = counts.get(key, 0) + 1
+            out.append(f"| {case} | " + " | ".join(str(counts[c]) if counts[c] else "." for c in cols) + " |")
+    return "\n".join(out)
+
+
+def limit_table(results, levels) -> str:
+    from identification.blind import MAGNITUDES
+
+    lines = ["\n**Detection limits** (smallest tested level from which every seed is named correctly at that "
+             "level and above; magnitudes are the level times the test magnitude, each seed drawing a factor in "
+             "[0.8, 1.25])\n",
+             "| hidden effect | test magnitude | detection limit (level) | magnitude at the limit | correct / runs "
+             "per level | located correctly | mean held-out improvement at the test level |",
+             "|---|---|---|---|---|---|---|"]
+    for case in [c for c in dict.fromkeys(r["case"] for r in results) if c != "none"]:
+        per_level = {}
+        for L in levels:
+            rs = [r for r in results if r["case"] == case and r["level"] == L]
+            per_level[L] = (sum(r["verdict"] == r["expect"] for r in rs), len(rs))
+        limit = None
+        for L in sorted(levels, reverse=True):
+            ok, n = per_level[L]
+            if n and ok == n:
+                limit = L
+            else:
+                break
+        loc = [r["located"] for r in results if r["case"] == case and r["located"] is not None]
+        top = [r for r in results if r["case"] == case and r["level"] == max(levels)]
+        unit = _units(case)
+        mag = MAGNITUDES[case]
+        lines.append(f"| {case} | {mag:g} {unit} | {limit if limit is not None else '> ' + str(max(levels))} | "
+                     f"{(f'{mag * limit:.3g} {unit}') if limit is not None else '-'} | "
+                     + ", ".join(f"{L:g}: {per_level[L][0]}/{per_level[L][1]}" for L in levels)
+                     + f" | {sum(loc)}/{len(loc)} | "
+                     f"{100 * np.mean([r['improvement'] for r in top]):.1f} % |")
+    return "\n".join(lines)
+
+
+def timing(progress: bool = True) -> str:
+    """Whole diagnosis of a 60 s log on one core, and the paper's identification of the same log."""
+    from identification.blind import excitation_trajectory, hidden_effect, run_log
+    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.paper import identify_log
+    from neck_sim.logs import read_log
+
+    try:
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+        core = "pinned to one core"
+    except (AttributeError, OSError):
+        core = "not pinned (no sched_setaffinity)"
+    case = hidden_effect("viscous_friction", 7)
+    traj = excitation_trajectory(case.params, sequences=4, move_time=2.0, hold_time=0.5)
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "sixty.mcap")
+        t0 = time.perf_counter()
+        run_log(path, case.params, case.effects, trajectory=traj, seed=7, write_truth=False)
+        t_sim = time.perf_counter() - t0
+        log = read_log(path, topics=("motors", "camera"))
+        t0 = time.perf_counter()
+        identify_log(log)
+        t_ident = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        diag = diagnose_log(log, settings=DiagnosisSettings(max_steps=3), progress=progress)
+        t_diag = time.perf_counter() - t0
+    dur = float(log.motors.t[-1] - log.motors.t[0])
+    tm = diag.timings
+    return "\n".join([
+        f"\n**Timing** ({core}; {dur:.1f} s log with hidden viscous friction, verdict `{diag.verdict}`)\n",
+        "| step | time (s) |", "|---|---|",
+        f"| simulate the log (plant + servo + MCAP) | {t_sim:.1f} |",
+        f"| paper identification (`identify_log`, baseline of this run) | {t_ident:.1f} |",
+        f"| whole diagnosis (3 steps, alpha_hat, 2 re-simulations) | {t_diag:.1f} |",
+        "| of which: " + ", ".join(f"{k} {v:.1f}" for k, v in tm.items()) + " | |",
+        f"| ratio diagnosis / identification | {t_diag / t_ident:.2f} |",
+        f"| ratio diagnosis / log duration (target < 1) | {t_diag / dur:.2f} |"])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--levels", default="0.25,0.5,1")
+    ap.add_argument("--negatives", type=int, default=6, help="noise-only controls (seeds 1..K)")
+    ap.add_argument("--cases", default=None, help="comma-separated blind cases (default: all)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--skip-timing", action="store_true")
+    args = ap.parse_args(argv)
+    from tqdm.auto import tqdm
+
+    from identification.blind import CASES
+
+    seeds = [int(s) for s in args.seeds.split(",")]
+    levels = sorted(float(x) for x in args.levels.split(","))
+    cases = [c for c in (args.cases.split(",") if args.cases else CASES) if c != "none"]
+    with tempfile.TemporaryDirectory() as d:
+        jobs = [(c, s, L, d) for c in cases for s in seeds for L in levels]
+        jobs += [("none", s, 1.0, d) for s in range(1, args.negatives + 1)]
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(args.workers) as ex:
+            results = list(tqdm(ex.map(_one, jobs), total=len(jobs), desc="blind diagnoses", unit="log"))
+        wall = time.perf_counter() - t0
+    neg = [r for r in results if r["case"] == "none"]
+    print(f"# Detection power of the diagnosis\n\n{len(results)} blind logs (20.8 s each), seeds {seeds}, "
+          f"levels {levels}; {wall:.0f} s with {args.workers} workers; diagnosis (fast path) "
+          f"{np.mean([r['t_diag'] for r in results]):.1f} s per log on average.")
+    print(confusion_tables(results, levels))
+    print(limit_table(results, levels))
+    fa = [r for r in neg if r["verdict"] != "none"]
+    print(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
+          + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}" if fa else "")
+          + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.")
+    if not args.skip_timing:
+        print(timing())
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(results, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
