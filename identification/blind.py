@@ -30,7 +30,6 @@ Units SI; cables 0-based in code (c1 = 0), 1-based in reports.
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, field
 

@@ -52,11 +52,11 @@ Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from neck_sim.analytic import elongation, linkage_dynamics, side_lengths, transmission_matrix
+from neck_sim.analytic import linkage_dynamics, side_lengths, transmission_matrix
 from neck_sim.effects import (VOCABULARY, ActuationDelay, Effects, Pretension, PulleyFriction, StribeckFriction,
                               ViscousFriction)
 from neck_sim.params import NeckParams
@@ -242,7 +242,8 @@ class MeasuredData:
         self._y_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._col_cache: dict = {}
         y_fast, y = self.observations(0.0)
-        # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5
+        # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5.  Not
+        # x_c <= 0: with a pretension the measured elongation is negative on a taut cable
         a = self.to_slow(reg.friction_basis(self.theta_dot_fast, params))
         W = (self.Z * a[:, None, :]).reshape(-1, self.C)
         yT = (np.einsum("sij,sj->si", self.Z, y) - self.linkage).reshape(-1)
@@ -252,7 +253,7 @@ class MeasuredData:
             fs0 = np.zeros(self.C)
         self.f_s0 = fs0
         t_est = y - a * fs0
-        slack = (t_est < slack_threshold) | (self.x <= 0)
+        slack = t_est < slack_threshold
         pad = int(math.ceil(slack_margin_s * prep.rate_hz))
         if pad > 0 and slack.any():
             kernel = np.ones(2 * pad + 1)

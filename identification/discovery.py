@@ -56,7 +56,7 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from itertools import product
 
 import numpy as np
@@ -65,7 +65,7 @@ from scipy import stats
 from neck_sim.params import NeckParams, to_dict
 
 from identification.candidates import (EFFECTS, PAPER_MODEL, REQUIRES, SHAPE_GRIDS, Fit, FitState, MeasuredData,
-                                       ModelSpec, Term, fit_model, initial_state, plant_model,
+                                       ModelSpec, Term, fit_model, plant_model,
                                        pretension_offsets)
 from identification.preprocessing import Measurements, PreprocessSettings
 
@@ -502,7 +502,7 @@ def _search_pretension(ctx: _Context, trial):
     per = min(1.0, 2.0 * fc / data.prep.rate_hz)
     found = []
     for j in range(data.C):
-        x = _golden(lambda v: _cable_law_score(ctx, j, v), *PRETENSION_RANGE, iterations=14)
+        x = _golden(lambda v, j=j: _cable_law_score(ctx, j, v), *PRETENSION_RANGE, iterations=14)
         s0, s1 = _cable_law_score(ctx, j, 0.0), _cable_law_score(ctx, j, x)
         n = max(int((data.taut[:, j] & ctx.split.train).sum() * per), 5)
         F = (s0 - s1) / max(s1 / (n - 4), 1e-300)

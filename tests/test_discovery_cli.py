@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 
 import numpy as np
 import pytest
@@ -136,7 +135,7 @@ def test_split_cuts_blocks_in_holds_and_folds_them():
     s = split_samples(t, activity, DiagnosisSettings())
     # 3 moves per block would leave 4 blocks, fewer than two per fold: 2 moves per block
     assert len(s.blocks) == 6 and s.method.startswith("blocks of 2 moves")
-    for a, b, _ in s.blocks[1:]:
+    for a, _, _ in s.blocks[1:]:
         assert (a % period) >= 2.0 - 1e-9          # every block starts in a hold
     assert [f for _, _, f in s.blocks] == [0, 1, 2, 0, 1, 2]
     s3 = split_samples(np.arange(0, 60, 1 / rate), np.where((np.arange(0, 60, 1 / rate) % period) < 2.0, 1.0, 0.0),

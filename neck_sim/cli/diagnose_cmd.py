@@ -15,6 +15,9 @@ MODEL_HELP = ("baseline model: 'paper' (default: arctan friction + variable-stif
 def add_arguments(parser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
     parser.add_argument("--model", metavar="MODEL", default="paper", help=MODEL_HELP)
+    parser.add_argument("--params", metavar="FILE",
+                        help="nominal constants (.json/.toml, 'neck-sim params' format) instead of the log's neck "
+                             "record; their friction and cable values only seed the fit (those are what is fitted)")
     parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
     parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
     parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
@@ -35,8 +38,10 @@ def run(args) -> int:
     from identification.discovery import DiagnosisSettings, diagnose_log, parse_model
     from identification.report import format_summary, write_report
     from neck_sim.logs import read_log
+    from neck_sim.params import load
 
     model = parse_model(args.model)              # fail early on a bad --model
+    params = load(args.params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
@@ -48,7 +53,9 @@ def run(args) -> int:
                    require=("motors", "camera"))
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
           f"model: {model.describe()}", file=sys.stderr)
-    diag = diagnose_log(log, model, settings, progress=not args.quiet)
+    if params is not None and params.n_joints != log.n_joints:
+        raise ValueError(f"--params {args.params}: {params.n_joints} joints, the log has {log.n_joints}")
+    diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
     print(format_summary(diag))
     if args.json:
         diag.write_json(args.json)
