@@ -124,7 +124,7 @@ def figure_simulator(runs: dict, measured_key: str = "measured"):
     """Figure 9: applied forces of the measured run and of simulators, ``runs`` name -> (t, force)."""
     n1 = next(iter(runs.values()))[1].shape[1]
     fig, axes = plt.subplots(n1, 1, figsize=(10, 2.0 * n1), sharex=True)
-    styles = {measured_key: dict(color="k", lw=1.2)}
+    styles = {measured_key: dict(color="0.15", lw=2.6, alpha=0.45)}     # wide and pale: simulators on top stay visible
     palette = iter(["tab:red", "tab:green", "tab:blue", "tab:orange"])
     for name, (t, f) in runs.items():
         st = styles.get(name) or dict(color=next(palette), lw=0.9)
