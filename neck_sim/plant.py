@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import logging
 import math
 import os
 import shutil
@@ -56,8 +57,8 @@ from neck_sim.effects import Effects
 from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["Plant", "Truth", "set_backend", "get_backend", "native_available", "NativeBuildError",
-           "MAX_CABLES"]
+__all__ = ["Plant", "Truth", "PlantDivergedError", "set_backend", "get_backend", "native_available",
+           "NativeBuildError", "MAX_CABLES"]
 
 MAX_CABLES = 32
 
@@ -234,6 +235,24 @@ class _PlantC(ctypes.Structure):
                     "pf_mu", "pf_c", "tension", "elongation", "elongation_rate", "alpha", "alpha_dot",
                     "theta", "theta_dot")]
                 + [("loop_gap", ctypes.c_double), ("calls", ctypes.c_double)])
+
+
+class PlantDivergedError(RuntimeError):
+    """The simulation blew up: MuJoCo saw a singular inertia or a NaN/huge state (and may have reset it)."""
+
+
+_MUJOCO_LOG = logging.getLogger("neck_sim.mujoco")
+
+
+def _mujoco_warning(message: str) -> None:
+    # MuJoCo's default prints to stdout and appends to ./MUJOCO_LOG.TXT; a library should log.
+    _MUJOCO_LOG.warning("MuJoCo: %s", message.strip())
+
+
+def _route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to the ``neck_sim.mujoco`` logger unless someone installed a handler."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_mujoco_warning)
 
 
 class NativeBuildError(RuntimeError):
@@ -432,6 +451,11 @@ def native_available() -> bool:
 
 # ----------------------------------------------------------------------------------------- plant
 
+# Warnings after which MuJoCo's state is no longer a valid neck (it resets itself on some of them).
+_FATAL_WARNINGS = tuple(int(getattr(mujoco.mjtWarning, w)) for w in
+                        ("mjWARN_INERTIA", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC"))
+
+
 class Plant:
     """The simulated neck (interfaces.md, ``neck_sim.plant``).
 
@@ -456,6 +480,7 @@ class Plant:
         self.true_params = self.effects.true_params(self.params)
         self.seed = int(seed)
         self.rigid_cables = bool(rigid_cables)
+        _route_mujoco_warnings()
         if self.rigid_cables:
             moot = [e.name for e in self.effects.active()
                     if e.name in ("pulley_friction", "pretension", "cable_elasticity", "tension_stiffening")]
@@ -679,6 +704,12 @@ class Plant:
             mujoco.mj_step1(m, d)
         finally:
             _DISPATCH.leave(previous)
+        if any(d.warning[w].number for w in _FATAL_WARNINGS):
+            raise PlantDivergedError(
+                f"plant: the simulation diverged during the control period ending at t = {self.time:.4f} s "
+                f"(MuJoCo reported a singular inertia or a NaN/huge state or acceleration); the commanded "
+                f"forces {np.array2string(np.asarray(f), precision=1)} N or the parameters drive the neck out of its "
+                f"valid range (|alpha| < {self.params.geometry.alpha_max:.3g} rad). Call reset() to go on.")
 
     def _step_segments(self, f: np.ndarray, k0: int, n: int) -> None:
         """A control period cut where a camera frame is taken or the delayed force changes."""

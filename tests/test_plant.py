@@ -392,3 +392,26 @@ def test_other_neck_lengths_run(n):
     tr = pl.truth()
     assert tr.alpha.shape == (n,) and tr.tension.shape == (n + 1,)
     assert tr.loop_gap < 1e-4 and np.all(np.isfinite(tr.alpha)) and np.all(tr.tension > 0)
+
+
+def test_divergence_is_an_error_not_a_silent_reset(tmp_path, monkeypatch):
+    """Bang-bang forces drive the neck past its range: MuJoCo resets its state, the plant says so."""
+    monkeypatch.chdir(tmp_path)
+    plant = P.Plant()
+    plant.reset()
+    # ours, or one installed earlier by someone else (dm_control installs its own): never MuJoCo's default
+    assert mujoco.get_mju_user_warning() is not None
+    with pytest.raises(P.PlantDivergedError, match="diverged"):
+        for _ in range(5000):
+            plant.step([100.0, 2.0, 2.0, 2.0])
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    with pytest.raises(P.PlantDivergedError):
+        plant.step([10.0] * 4)                       # still broken until reset
+    plant.reset()
+    plant.step([10.0] * 4)
+
+
+def test_mujoco_warnings_go_to_logging(caplog):
+    with caplog.at_level("WARNING", logger="neck_sim.mujoco"):
+        P._mujoco_warning("Nan, Inf or huge value in QACC at DOF 0.\n")
+    assert [r.getMessage() for r in caplog.records] == ["MuJoCo: Nan, Inf or huge value in QACC at DOF 0."]
