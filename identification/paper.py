@@ -230,21 +230,18 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
                          f"need the camera's joint angles (joint torques of eq 38, elongations of eq 27)")
     notes: list[str] = []
     dyn = reg.joint_dynamics(prep, params)
-    friction = elastic = variable = None
-    if "friction" in models or ("variable" in models and "elastic" not in models):
-        friction = solve_weighted(*reg.friction_model(prep, params, dyn))
-    f_s0 = friction.group("f_s") if friction is not None else None
-    taut = None
+    # friction alone is cheap and gives the slack mask its tension estimate (eq 41)
+    friction = solve_weighted(*reg.friction_model(prep, params, dyn))
+    taut = reg.taut_samples(prep, params, friction.group("f_s"), threshold=s.slack_threshold,
+                            margin_s=s.slack_margin_s)
+    elastic = variable = None
     if "elastic" in models:
-        if f_s0 is None:     # the slack mask needs a first friction estimate
-            f_s0 = solve_weighted(*reg.friction_model(prep, params, dyn)).group("f_s")
-        taut = reg.taut_samples(prep, params, f_s0, threshold=s.slack_threshold, margin_s=s.slack_margin_s)
         elastic = solve_weighted(*reg.elastic_model(prep, params, weight=s.weight, taut=taut, dyn=dyn))
     f_s = (elastic or friction).group("f_s")
-    if taut is None:
-        taut = reg.taut_samples(prep, params, f_s, threshold=s.slack_threshold, margin_s=s.slack_margin_s)
     if "variable" in models:
         variable = solve_weighted(*reg.variable_stiffness_model(prep, params, f_s, taut=taut))
+    if "friction" not in models:
+        friction = None
 
     torque_error, series = _torque_errors(prep, params, dyn, f_s)
     t_rhs = reg.tension_from_forces(prep, params, f_s)
