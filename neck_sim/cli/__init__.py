@@ -15,6 +15,7 @@ import sys
 
 # name -> module (inside neck_sim.cli) implementing it
 COMMANDS: dict[str, str] = {
+    "reproduce": "reproduce_cmd",
     "params": "params_cmd",
     "pulleys": "pulleys_cmd",
     "crossval": "crossval_cmd",
