@@ -30,7 +30,10 @@ COMMANDS: dict[str, str] = {
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="neck-sim", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="neck-sim",
+        description="neck-sim: a MuJoCo testbed for cable-driven tensegrity necks (the paper's 3-X bird neck).",
+        epilog="Start with `neck-sim reproduce` (add --quick for a short run); `neck-sim COMMAND --help` for details.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, module in COMMANDS.items():
         mod = importlib.import_module(f"neck_sim.cli.{module}")
