@@ -37,7 +37,12 @@ def _one(job):
 
     path = os.path.join(directory, f"{name.replace(':', '_')}_{seed}_{level}.mcap")
     t0 = time.perf_counter()
-    case, _ = make_case(name, seed, path, level=level)
+    try:
+        case, _ = make_case(name, seed, path, level=level)
+    except RuntimeError as exc:             # the servo cannot hold this plant (e.g. a long delay)
+        return {"case": name, "seed": seed, "level": level, "expect": name, "magnitude": None,
+                "nominal_magnitude": MAGNITUDES.get(name, 0.0) * level, "description": f"simulation failed: {exc}",
+                "verdict": "simulation failed", "improvement": 0.0, "located": None, "t_sim": 0.0, "t_diag": 0.0}
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
     diag = diagnose_log(path, model=",".join(case.model) or "rigid",
@@ -89,6 +94,8 @@ def confusion_tables(results, levels) -> str:
                 continue
             counts = {c: 0 for c in cols}
             for r in rs:
+                if r["verdict"] == "simulation failed":
+                    continue
                 key = "ambiguous" if r["verdict"].startswith("ambiguous") else r["verdict"]
                 counts[key] = counts.get(key, 0) + 1
             out.append(f"| {case} | " + " | ".join(str(counts[c]) if counts[c] else "." for c in cols) + " |")
@@ -107,23 +114,27 @@ def limit_table(results, levels) -> str:
     for case in [c for c in dict.fromkeys(r["case"] for r in results) if c != "none"]:
         per_level = {}
         for L in levels:
-            rs = [r for r in results if r["case"] == case and r["level"] == L]
+            rs = [r for r in results if r["case"] == case and r["level"] == L and r["verdict"] != "simulation failed"]
             per_level[L] = (sum(r["verdict"] == r["expect"] for r in rs), len(rs))
         limit = None
         for L in sorted(levels, reverse=True):
             ok, n = per_level[L]
-            if n and ok == n:
+            if n == 0:                  # not simulable at this level (e.g. stiffening past the cable's pole)
+                continue
+            if ok == n:
                 limit = L
             else:
                 break
         loc = [r["located"] for r in results if r["case"] == case and r["located"] is not None]
-        top = [r for r in results if r["case"] == case and r["level"] == max(levels)]
+        ref = 1.0 if 1.0 in levels else max(levels)
+        top = [r for r in results if r["case"] == case and r["level"] == ref and r["verdict"] != "simulation failed"]
         unit = _units(case)
         mag = MAGNITUDES[case]
         lines.append(f"| {case} | {mag:g} {unit} | {limit if limit is not None else '> ' + str(max(levels))} | "
                      f"{(f'{mag * limit:.3g} {unit}') if limit is not None else '-'} | "
-                     + ", ".join(f"{L:g}: {per_level[L][0]}/{per_level[L][1]}" for L in levels)
-                     + f" | {sum(loc)}/{len(loc)} | "
+                     + ", ".join(f"{L:g}: {per_level[L][0]}/{per_level[L][1]}" if per_level[L][1] else
+                                 f"{L:g}: not simulable" for L in levels)
+                     + f" | {f'{sum(loc)}/{len(loc)}' if loc else '-'} | "
                      f"{100 * np.mean([r['improvement'] for r in top]):.1f} % |")
     return "\n".join(lines)
 
@@ -167,6 +178,23 @@ def timing(progress: bool = True) -> str:
         f"| ratio diagnosis / log duration (target < 1) | {t_diag / dur:.2f} |"])
 
 
+def report(results, levels, seeds, how: str) -> None:
+    neg = [r for r in results if r["case"] == "none"]
+    failed = [r for r in results if r["verdict"] == "simulation failed"]
+    print(f"# Detection power of the diagnosis\n\n{len(results)} blind logs (20.8 s each), seeds {seeds}, "
+          f"levels {levels}; {how}; diagnosis (fast path) "
+          f"{np.mean([r['t_diag'] for r in results if r['t_diag']]):.1f} s per log on average.")
+    if failed:
+        print("\nSimulations that failed (left out): " + "; ".join(f"{r['case']} seed {r['seed']} level {r['level']}"
+                                                                  for r in failed))
+    print(confusion_tables(results, levels))
+    print(limit_table(results, levels))
+    fa = [r for r in neg if r["verdict"] != "none"]
+    print(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
+          + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}" if fa else "")
+          + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1,2,3")
@@ -176,6 +204,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None)
     ap.add_argument("--skip-timing", action="store_true")
+    ap.add_argument("--from-json", default=None, help="print the tables of a previous --json run (no simulation)")
     args = ap.parse_args(argv)
     from tqdm.auto import tqdm
 
@@ -184,6 +213,13 @@ def main(argv=None) -> int:
     seeds = [int(s) for s in args.seeds.split(",")]
     levels = sorted(float(x) for x in args.levels.split(","))
     cases = [c for c in (args.cases.split(",") if args.cases else CASES) if c != "none"]
+    if args.from_json:
+        with open(args.from_json) as fh:
+            results = json.load(fh)
+        levels = sorted({r["level"] for r in results if r["case"] != "none"})
+        seeds = sorted({r["seed"] for r in results if r["case"] != "none"})
+        report(results, levels, seeds, "from " + args.from_json)
+        return 0
     with tempfile.TemporaryDirectory() as d:
         jobs = [(c, s, L, d) for c in cases for s in seeds for L in levels]
         jobs += [("none", s, 1.0, d) for s in range(1, args.negatives + 1)]
@@ -191,16 +227,7 @@ def main(argv=None) -> int:
         with ProcessPoolExecutor(args.workers) as ex:
             results = list(tqdm(ex.map(_one, jobs), total=len(jobs), desc="blind diagnoses", unit="log"))
         wall = time.perf_counter() - t0
-    neg = [r for r in results if r["case"] == "none"]
-    print(f"# Detection power of the diagnosis\n\n{len(results)} blind logs (20.8 s each), seeds {seeds}, "
-          f"levels {levels}; {wall:.0f} s with {args.workers} workers; diagnosis (fast path) "
-          f"{np.mean([r['t_diag'] for r in results]):.1f} s per log on average.")
-    print(confusion_tables(results, levels))
-    print(limit_table(results, levels))
-    fa = [r for r in neg if r["verdict"] != "none"]
-    print(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
-          + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}" if fa else "")
-          + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.")
+    report(results, levels, seeds, f"{wall:.0f} s with {args.workers} workers")
     if not args.skip_timing:
         print(timing())
     if args.json:

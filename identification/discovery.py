@@ -706,13 +706,17 @@ def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, mas
     for k in tqdm(range(T), desc="re-simulation", unit="step", disable=not progress, mininterval=0.5, leave=False):
         theta[k] = plant.encoders()
         alpha[k] = plant.truth().alpha
-        plant.step(force[k])
-        if bad_qacc.number > 0 or not np.all(np.isfinite(plant.data.qpos)):
+        try:
+            plant.step(force[k])
+            diverged = bad_qacc.number > 0 or not np.all(np.isfinite(plant.data.qpos))
+        except RuntimeError:                     # neck_sim.plant.PlantDivergedError
+            diverged = True
+        if diverged:
             # MuJoCo resets a diverging simulation to its initial state: stop there instead
             theta[k + 1:] = np.nan
             alpha[k + 1:] = np.nan
-            status = (f"diverged at t = {meas_t[k] - meas_t[0]:.3f} s (the model is unstable open loop under the "
-                      f"logged forces, e.g. rigid cables without friction)")
+            status = (f"diverged at t = {meas_t[k] - meas_t[0]:.3f} s (open loop, the logged forces drive this model "
+                      f"out of its valid range, e.g. rigid cables without friction)")
             break
     d_theta = (theta - theta[0]) - (theta_log - theta_log[0])
     a_cam = np.stack([np.interp(tc, meas_t, alpha[:, j]) for j in range(data.n)], axis=1)
