@@ -677,56 +677,78 @@ def alpha_hat_errors(data: MeasuredData, fits, masks: dict, step: int = 4) -> li
     return out
 
 
-def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, masks: dict, *,
-               progress: bool = False) -> dict:
-    """Re-run the plant of a model open loop with the logged commanded forces.
+def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, split: Split, masks: dict, *,
+               settle_s: float = 0.3, progress: bool = False) -> dict:
+    """Re-run the plant of a model open loop with the logged commanded forces, block by block.
 
-    Starts at rest at the first camera frame's pose (the log's initial state); compares the
-    encoder increments theta - theta(0) with the logged ones (rad) at every control sample and
-    the simulated joint angles with the camera frames (deg).  Errors are given per mask (time
-    spans of the slow grid) and the series under ``"series"``.
+    Each block of ``split`` (they start in the middle of a hold) is re-simulated from rest at the
+    camera pose of its first sample: an open-loop run has no feedback, so over a whole log small
+    model errors (or none: a closed-loop log's forces need the loop) carry the neck away.  The
+    plant starts with unstretched cables, so a pre-roll of ``settle_s`` ramps the block's first
+    commanded forces up (all cables together: the light linkage must not see one cable pull
+    alone) and holds them; then the logged forces drive it and the comparison runs: encoder
+    increments from the block start against the logged ones (rad), simulated joint angles
+    against the camera frames (deg).  Errors per mask, the series under ``"series"``; a block
+    that diverges is reported and left out from there on.
     """
     import mujoco
     from tqdm.auto import tqdm
 
     from neck_sim.plant import Plant
 
-    meas_t = data.t_fast
+    t_fast = data.t_fast
     force = data.force_fast
     theta_log = data.prep.fast.theta
     tc, ac = data.prep.camera
+    T = t_fast.size
+    theta_err = np.full((T, data.C), np.nan)
+    alpha_sim = np.full((T, data.n), np.nan)
     plant = Plant(params, effects, seed=0, rigid_cables=rigid)
-    a0 = np.clip(ac[0], -0.95 * params.geometry.alpha_max, 0.95 * params.geometry.alpha_max)
-    plant.reset(alpha0=a0)
-    T = meas_t.size
-    theta = np.empty((T, data.C))
-    alpha = np.empty((T, data.n))
-    status = "ok"
     bad_qacc = plant.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
-    for k in tqdm(range(T), desc="re-simulation", unit="step", disable=not progress, mininterval=0.5, leave=False):
-        theta[k] = plant.encoders()
-        alpha[k] = plant.truth().alpha
-        try:
-            plant.step(force[k])
-            diverged = bad_qacc.number > 0 or not np.all(np.isfinite(plant.data.qpos))
-        except RuntimeError:                     # neck_sim.plant.PlantDivergedError
-            diverged = True
-        if diverged:
-            # MuJoCo resets a diverging simulation to its initial state: stop there instead
-            theta[k + 1:] = np.nan
-            alpha[k + 1:] = np.nan
-            status = (f"diverged at t = {meas_t[k] - meas_t[0]:.3f} s (open loop, the logged forces drive this model "
-                      f"out of its valid range, e.g. rigid cables without friction)")
-            break
-    d_theta = (theta - theta[0]) - (theta_log - theta_log[0])
-    a_cam = np.stack([np.interp(tc, meas_t, alpha[:, j]) for j in range(data.n)], axis=1)
+    amax = 0.95 * params.geometry.alpha_max
+    settle = int(round(settle_s / data.dt))
+    diverged = []
+    edges = [(a, b) for a, b, _ in split.blocks]
+    for a, b in tqdm(edges, desc="re-simulation", unit="block", disable=not progress, leave=False):
+        i0, i1 = np.searchsorted(t_fast, a), np.searchsorted(t_fast, b, side="right")
+        if i1 - i0 <= 2:
+            continue
+        a0 = np.array([np.interp(a, data.t, data.alpha[:, j]) for j in range(data.n)])
+        plant.reset(alpha0=np.clip(a0, -amax, amax))
+        bad_qacc.number = 0
+        ramp = 0.5 * (1 - np.cos(np.pi * np.minimum(np.arange(settle) / (0.7 * settle), 1.0)))
+        pre = [force[i0] * w for w in ramp]
+        th = np.full((i1 - i0, data.C), np.nan)
+        for k in range(i0 - settle, i1):
+            if k >= i0:
+                th[k - i0] = plant.encoders()
+                alpha_sim[k] = plant.truth().alpha
+            try:
+                plant.step(pre[k - i0 + settle] if k < i0 else force[k])
+                bad = bad_qacc.number > 0 or not np.all(np.isfinite(plant.data.qpos))
+            except RuntimeError:                 # neck_sim.plant.PlantDivergedError
+                bad = True
+            if bad:
+                if k >= i0:
+                    alpha_sim[k + 1:i1] = np.nan
+                    th[k + 1 - i0:] = np.nan
+                else:
+                    th[:] = np.nan
+                    alpha_sim[i0:i1] = np.nan
+                diverged.append(f"{a:.1f}-{b:.1f} s at {t_fast[max(k, i0)]:.2f} s")
+                break
+        theta_err[i0:i1] = (th - th[0]) - (theta_log[i0:i1] - theta_log[i0])
+    a_cam = np.stack([np.interp(tc, t_fast, alpha_sim[:, j], left=np.nan, right=np.nan) for j in range(data.n)], axis=1)
     e_alpha = np.degrees(a_cam - ac)
-    out = {"status": status, "series": {"t": meas_t, "theta_error": d_theta, "t_camera": tc, "alpha_error_deg": e_alpha}}
+    status = "ok" if not diverged else (f"diverged in {len(diverged)} of {len(edges)} blocks (open loop the logged "
+                                        f"forces drive this model out of its valid range): " + "; ".join(diverged))
+    out = {"status": status, "series": {"t": t_fast, "theta_error": theta_err, "t_camera": tc,
+                                        "alpha_error_deg": e_alpha}}
     for name, mask in masks.items():
-        m_fast = np.interp(meas_t, data.t, mask.astype(float), left=0, right=0) > 0.5
+        m_fast = np.interp(t_fast, data.t, mask.astype(float), left=0, right=0) > 0.5
         m_cam = np.interp(tc, data.t, mask.astype(float), left=0, right=0) > 0.5
-        ok_f, ok_c = m_fast & np.isfinite(d_theta).all(1), m_cam & np.isfinite(e_alpha).all(1)
-        out[name] = {"theta_rms_rad": _rms(d_theta[ok_f]).tolist() if ok_f.any() else None,
+        ok_f, ok_c = m_fast & np.isfinite(theta_err).all(1), m_cam & np.isfinite(e_alpha).all(1)
+        out[name] = {"theta_rms_rad": _rms(theta_err[ok_f]).tolist() if ok_f.any() else None,
                      "alpha_rms_deg": _rms(e_alpha[ok_c]).tolist() if ok_c.any() else None,
                      "alpha_mean_abs_deg": float(np.mean(np.abs(e_alpha[ok_c]))) if ok_c.any() else None,
                      "covered_fraction": float(ok_f.sum() / max(m_fast.sum(), 1))}
@@ -950,7 +972,7 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     if s.resimulate:
         for idx in sorted({0, len(fits) - 1}):
             p, e, rigid = plant_model(fits[idx], data.params)
-            resim[idx] = resimulate(data, p, e, rigid, masks, progress=progress)
+            resim[idx] = resimulate(data, p, e, rigid, split, masks, progress=progress)
     timings["resimulation"] = time.perf_counter() - t1
 
     def summary(idx: int) -> dict:

@@ -136,9 +136,10 @@ def _residual_figure(diag, path: str, kind: str) -> str:
                 ax.set_xlabel(xlabel)
             if c == 0:
                 ax.set_ylabel(f"{name_of(ch)} ({unit})")
-    axes[0, 0].legend(fontsize=7, loc="upper left")
+    handles, names = axes[0, 0].get_legend_handles_labels()
     fig.suptitle(f"{title}, cross-validated (grey bands: primary held-out blocks)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.legend(handles, names, loc="lower center", ncol=2, fontsize=8, frameon=False)
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
@@ -210,10 +211,16 @@ def _resim_figure(diag, path: str) -> str | None:
                          label=lab if j == 0 else None)
         for j in range(data.n):
             axes[1].plot(s["t_camera"], s["alpha_error_deg"][:, j], color=color, lw=0.6, label=lab if j == 0 else None)
-    for ax in axes:
+    for ax, key in zip(axes, ("theta_error", "alpha_error_deg")):
         _shade(ax, diag.split, None)
         ax.axhline(0, color="k", lw=0.5)
         ax.legend(fontsize=7)
+        # a diverging model blows up just before it stops: keep the scale of the rest
+        vals = np.concatenate([np.abs(rs[i][key]).ravel() for i in keys])
+        vals = vals[np.isfinite(vals)]
+        if vals.size:
+            lim = 1.5 * float(np.percentile(vals, 98)) + 1e-9
+            ax.set_ylim(-lim, lim)
     axes[0].set_ylabel("theta error (rad)")
     axes[1].set_ylabel("alpha - camera (deg)")
     axes[1].set_xlabel("time (s)")
