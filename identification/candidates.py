@@ -433,8 +433,9 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     """Fit ``model`` on the training samples ``train`` (S,) bool by weighted least squares.
 
     ``scales`` (N + C,): the residual scale of each channel (torque N m per joint, elongation m per
-    cable); every channel's rows are weighted by 1 / (scale sqrt(rows)) so that the fit minimises
-    the mean over channels of the normalised mean square -- the score the diagnosis compares.
+    cable); every channel's rows are weighted by 1 / (scale sqrt(2 rows channels-of-its-type)) so
+    that the fit minimises the diagnosis' score: the normalised mean squares averaged within
+    each residual type, then over the two types.
     ``state`` seeds the tension and stiffness estimates (default :func:`initial_state`).  Raises
     ValueError (from :func:`identification.least_squares.solve_weighted`) when a parameter is not
     identifiable on these data.
@@ -458,8 +459,9 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     lam_hat = np.maximum(np.asarray(state.lam, dtype=float), 0.0)
     n_train_T = max(int(train.sum()), 1)
     n_train_C = np.maximum((taut & train[:, None]).sum(0), 1)
-    wT = 1.0 / (scales[:n] * np.sqrt(n_train_T))
-    wC = 1.0 / (scales[n:] * np.sqrt(n_train_C))
+    # each residual type weighs one half, shared by its channels (the diagnosis' score)
+    wT = 1.0 / (scales[:n] * np.sqrt(n_train_T * 2 * n))
+    wC = 1.0 / (scales[n:] * np.sqrt(n_train_C * 2 * C))
     fit = None
     notes = []
     for _ in range(iters):

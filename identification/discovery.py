@@ -20,9 +20,11 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
    its parameters per cable where it is per cable, its shape parameters chosen on the training
    folds (a grid refined by golden-section search; a bounded search per cable for the rest
    elongation), then cross-validated.
-4. **Score** ``S`` = mean over channels (N torque + N+1 elongation channels) of the mean square
-   residual divided by the square of the baseline's primary training RMS of that channel.  A
-   candidate is **significant** when all of these hold:
+4. **Score** ``S``: the mean square residual of each channel (N joint torques, N+1 cable
+   elongations) divided by the square of the baseline's primary training RMS of that channel,
+   averaged within each residual type and then over the two types (each equation type counts
+   one half, as the paper's weight W = 100 balances them).  A candidate is **significant** when
+   all of these hold:
 
    * cross-validated (held-out) improvement ``1 - S_cand / S_base >= min_improvement`` (2 %);
    * a one-sided Wilcoxon signed-rank test of the per-chunk score reductions over chunks of
@@ -70,7 +72,7 @@ from identification.candidates import (EFFECTS, PAPER_MODEL, REQUIRES, SHAPE_GRI
 from identification.preprocessing import Measurements, PreprocessSettings
 
 __all__ = ["DiagnosisSettings", "Split", "split_samples", "CandidateScore", "Step", "Diagnosis", "diagnose",
-           "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "score", "resimulate", "alpha_hat_errors"]
+           "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "score", "channel_weights", "resimulate", "alpha_hat_errors"]
 
 #: ``--model`` shortcuts (any comma-separated list of effect names is also accepted).
 MODEL_SHORTCUTS = {
@@ -234,9 +236,17 @@ def _ms(res: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(ok, r, 0.0).__pow__(2).sum(0) / np.maximum(ok.sum(0), 1)
 
 
+def channel_weights(n_channels: int) -> np.ndarray:
+    """(N + C,) weights of the channels in S: each residual type (torque, cable) counts one half,
+    shared by its channels (C = N + 1), as the paper's W = 100 balances its two blocks."""
+    n = (n_channels - 1) // 2
+    return np.concatenate([np.full(n, 0.5 / n), np.full(n + 1, 0.5 / (n + 1))])
+
+
 def score(res: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> float:
-    """S: mean over channels of (mean square residual over ``mask``) / scale^2."""
-    return float(np.mean(_ms(res, mask) / scales ** 2))
+    """S: over ``mask``, the mean square residual of each channel / scale^2, averaged within each
+    residual type (joint torque, cable elongation) and then over the two types."""
+    return float(np.sum(channel_weights(scales.size) * _ms(res, mask) / scales ** 2))
 
 
 def block_scores(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints: int) -> dict:
@@ -248,8 +258,7 @@ def _chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Split, scales: 
     """Per chunk, its share of S_base - S_cand over all samples (the shares sum to the difference)."""
     n = np.maximum(np.isfinite(base).sum(0), 1)
     d = (np.nan_to_num(base) ** 2 - np.nan_to_num(cand) ** 2) / n / scales ** 2      # (S, N + C)
-    per_sample = d.mean(1)
-    return np.bincount(split.chunk, weights=per_sample)
+    return np.bincount(split.chunk, weights=d @ channel_weights(scales.size))
 
 
 def _paired_p(reductions: np.ndarray) -> float:
@@ -883,8 +892,8 @@ METHOD = {
     "split": "contiguous blocks of about 3 moves cut in holds, assigned to 3 folds in turn; residuals "
              "cross-validated (each block predicted by the model fitted on the other folds); the primary "
              "split trains on folds 0 and 2 and holds fold 1 out (alpha_hat, re-simulation, written model)",
-    "score": "S = mean over channels (N torque, N+1 elongation) of mean square residual / (primary baseline "
-             "training RMS)^2",
+    "score": "S = per channel (N torque, N+1 elongation) mean square residual / (primary baseline training "
+             "RMS)^2, averaged within each residual type, then over the two types",
     "significance": "cross-validated improvement 1 - S_cand/S_base >= min_improvement (0.02), one-sided "
                     "Wilcoxon signed-rank test over 0.25 s chunks p < alpha (0.01), training F-test counting the "
                     "added linear and searched shape parameters (one effective sample per 1/(2 f_c) s per "
@@ -944,6 +953,37 @@ def diagnose(data: MeasuredData, model=None, settings: DiagnosisSettings | None 
         return _diagnose(data, model, settings, progress=progress, source=source)
 
 
+def _retune(data: MeasuredData, model: ModelSpec, split: Split, settings: DiagnosisSettings,
+            state: FitState | None, found: set) -> ModelSpec:
+    """Re-search the one-parameter shapes (c_s, pulley c, delay) of the terms the diagnosis added,
+    within a factor 2 (5 ms for the delay) of their values, on the primary training score."""
+    _, scales = _base_fit(data, model, split, settings, state)
+    for term in model.terms:
+        if term.name not in found or term.name not in _REFINE:
+            continue
+        key, log_scale = _REFINE[term.name]
+        v0 = term.get(key)
+
+        def with_value(v, term=term, key=key, model=model):
+            t = Term(term.name, tuple((k, (v if k == key else x)) for k, x in term.shape))
+            return ModelSpec(tuple(t if u is term else u for u in model.terms)), t
+
+        def cost(u, with_value=with_value, log_scale=log_scale):
+            v = round(float(np.exp(u)) if log_scale else u, 6)
+            try:
+                fit = fit_model(data, with_value(v)[0], split.train, scales, state, iterations=settings.iterations)
+            except ValueError:
+                return math.inf
+            return score(fit.residuals(), split.train, scales)
+
+        lo, hi = (np.log(v0 / 2), np.log(2 * v0)) if log_scale else (max(v0 - 0.005, 0.0), v0 + 0.005)
+        u = _golden(cost, lo, hi, iterations=7)
+        u0 = np.log(v0) if log_scale else v0
+        if cost(u) < cost(u0):
+            model = with_value(round(float(np.exp(u)) if log_scale else u, 6))[0]
+    return model
+
+
 def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, progress: bool,
               source: str) -> Diagnosis:
     s = settings or DiagnosisSettings()
@@ -954,6 +994,9 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     steps = []
     current, state = model, None
     for i in range(max(s.max_steps, 1)):
+        if i > 0:
+            # shapes searched at an earlier step were chosen without the effects found since
+            current = _retune(data, current, split, s, state, {st.chosen.term.name for st in steps})
         step = run_step(data, current, split, s, state, progress=progress, desc=f"step {i + 1}: candidates")
         steps.append(step)
         if step.chosen is None:

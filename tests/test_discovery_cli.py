@@ -155,8 +155,9 @@ def test_score_and_paired_test():
     rng = np.random.default_rng(0)
     res = rng.normal(size=(400, 3))
     scales = np.array([1.0, 2.0, 0.5])
-    # each channel normalised by its scale, then averaged
-    expected = np.mean(np.mean(res ** 2, 0) / scales ** 2)
+    # 1 joint, 2 cables: the torque channel weighs one half, each cable channel one quarter
+    ms = np.mean(res ** 2, 0) / scales ** 2
+    expected = 0.5 * ms[0] + 0.25 * (ms[1] + ms[2])
     assert score(res, np.ones(400, bool), scales) == pytest.approx(expected)
     res[::7, 0] = np.nan                            # slack samples are left out
     assert np.isfinite(score(res, np.ones(400, bool), scales))
