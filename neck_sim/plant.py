@@ -499,6 +499,7 @@ class Plant:
         self.xml = build_xml(self.true_params, timestep=dt, rigid_cables=self.rigid_cables)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
+        self._fatal_warnings = tuple(self.data.warning[w] for w in _FATAL_WARNINGS)   # live views, cheap to poll
         self._ix = ix = model_index(self.model)
         self._address = self.model._address
         self.model.dof_damping[ix.dof_motor] = 0.0      # the static stand-in for eq (37); the callback applies it
@@ -704,7 +705,7 @@ class Plant:
             mujoco.mj_step1(m, d)
         finally:
             _DISPATCH.leave(previous)
-        if any(d.warning[w].number for w in _FATAL_WARNINGS):
+        if any(w.number for w in self._fatal_warnings):
             raise PlantDivergedError(
                 f"plant: the simulation diverged during the control period ending at t = {self.time:.4f} s "
                 f"(MuJoCo reported a singular inertia or a NaN/huge state or acceleration); the commanded "
