@@ -242,11 +242,18 @@ class PlantDivergedError(RuntimeError):
 
 
 _MUJOCO_LOG = logging.getLogger("neck_sim.mujoco")
+# Texts of MuJoCo's warnings after which the plant raises PlantDivergedError (which quotes them):
+# logged at DEBUG only, so a diverging candidate model does not flood the terminal.
+_FATAL_TEXTS = ("Nan, Inf or huge value", "Inertia matrix is too close to singular")
+_last_mujoco_warning = ""
 
 
 def _mujoco_warning(message: str) -> None:
     # MuJoCo's default prints to stdout and appends to ./MUJOCO_LOG.TXT; a library should log.
-    _MUJOCO_LOG.warning("MuJoCo: %s", message.strip())
+    global _last_mujoco_warning
+    _last_mujoco_warning = message.strip()
+    level = logging.DEBUG if _last_mujoco_warning.startswith(_FATAL_TEXTS) else logging.WARNING
+    _MUJOCO_LOG.log(level, "MuJoCo: %s", _last_mujoco_warning)
 
 
 def _route_mujoco_warnings() -> None:
@@ -710,7 +717,8 @@ class Plant:
                 f"plant: the simulation diverged during the control period ending at t = {self.time:.4f} s "
                 f"(MuJoCo reported a singular inertia or a NaN/huge state or acceleration); the commanded "
                 f"forces {np.array2string(np.asarray(f), precision=1)} N or the parameters drive the neck out of its "
-                f"valid range (|alpha| < {self.params.geometry.alpha_max:.3g} rad). Call reset() to go on.")
+                f"valid range (|alpha| < {self.params.geometry.alpha_max:.3g} rad). Call reset() to go on."
+                + (f" MuJoCo said: {_last_mujoco_warning}" if _last_mujoco_warning else ""))
 
     def _step_segments(self, f: np.ndarray, k0: int, n: int) -> None:
         """A control period cut where a camera frame is taken or the delayed force changes."""
