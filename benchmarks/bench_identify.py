@@ -119,7 +119,7 @@ def monte_carlo(amplitudes, params, seeds: int) -> dict:
 
 
 def study(tmp: str, seeds: int, out_dir: str | None) -> dict:
-    from identification.excitation import paper_amplitudes, sequences_trajectory
+    from identification.excitation import paper_amplitudes
     from identification.plots import figure_simulator, save_figure, save_identification_figures
     from identification.simulator import compare_simulators
 
@@ -180,9 +180,9 @@ def main(argv=None) -> int:
         if args.study:
             out.update(study(tmp, args.seeds, args.plots))
     if args.json:
-        from neck_sim.params import atomic_write_bytes
+        from neck_sim.atomic import atomic_write_json
 
-        atomic_write_bytes(args.json, (json.dumps(out, indent=1, default=float) + "\n").encode())
+        atomic_write_json(args.json, out, indent=1, default=float)
     return 0
 
 

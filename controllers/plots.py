@@ -21,7 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from controllers.closed_loop import RunResult
-from neck_sim.params import atomic_write_bytes
+from neck_sim.atomic import atomic_write_bytes
 
 __all__ = ["joint_angles_figure", "forces_figure", "errors_figure", "save_figure", "save_run_plots"]
 

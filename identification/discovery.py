@@ -64,6 +64,8 @@ from itertools import product
 import numpy as np
 from scipy import stats
 
+from neck_sim.atomic import atomic_write_json
+from neck_sim.atomic import jsonable as _jsonable
 from neck_sim.params import NeckParams, to_dict
 
 from identification.candidates import (EFFECTS, PAPER_MODEL, REQUIRES, SHAPE_GRIDS, Fit, FitState, MeasuredData,
@@ -877,15 +879,11 @@ class Diagnosis:
                           "method": METHOD})
 
     def write_json(self, path) -> None:
-        from neck_sim.params import atomic_write_bytes
-
-        atomic_write_bytes(path, (json.dumps(self.to_dict(), indent=2) + "\n").encode())
+        atomic_write_json(path, self.to_dict())
 
     def write_model(self, path) -> None:
         """The final model (terms, plant parameters, effects) as JSON; ``--model`` reads it back."""
-        from neck_sim.params import atomic_write_bytes
-
-        atomic_write_bytes(path, (json.dumps(_jsonable(self.extended), indent=2) + "\n").encode())
+        atomic_write_json(path, self.extended)
 
 
 METHOD = {
@@ -910,23 +908,6 @@ def _step_dict(step: Step, i: int) -> dict:
             "candidates": [{"effect": c.term.name, **c.evidence()} for c in
                            sorted(step.candidates, key=lambda c: -c.improvement)],
             "pairwise": list(step.pairwise)}
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    return x
 
 
 def _extended_dict(fit: Fit, nominal: NeckParams) -> dict:

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from neck_sim.params import atomic_write_bytes  # noqa: E402
+from neck_sim.atomic import atomic_write_bytes  # noqa: E402
 
 __all__ = ["save_figure", "figure_torques", "figure_tensions", "figure_tension_error", "figure_alpha",
            "figure_simulator", "save_identification_figures"]

@@ -336,7 +336,7 @@ def write_report(diag, directory) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg")
-    from neck_sim.params import atomic_write_bytes
+    from neck_sim.atomic import atomic_write_bytes
 
     directory = os.fspath(directory)
     os.makedirs(directory, exist_ok=True)

@@ -9,11 +9,14 @@ Published files get the permissions a plain ``open`` would give (0666 minus the 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from typing import Any
 
-__all__ = ["temp_file_beside", "publish", "discard", "atomic_write_bytes", "atomic_write_json"]
+import numpy as np
+
+__all__ = ["temp_file_beside", "publish", "discard", "atomic_write_bytes", "atomic_write_json", "jsonable"]
 
 
 def _umask() -> int:
@@ -58,6 +61,25 @@ def atomic_write_bytes(path: str | os.PathLike, payload: bytes) -> None:
         raise
 
 
+def jsonable(x: Any) -> Any:
+    """``x`` with numpy arrays and scalars as plain Python values and NaN/inf as None (valid JSON)."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    return x
+
+
 def atomic_write_json(path: str | os.PathLike, obj: Any, *, indent: int = 2, **dumps_kwargs) -> None:
-    """Write ``obj`` as JSON (with a final newline) to ``path`` atomically."""
-    atomic_write_bytes(path, (json.dumps(obj, indent=indent, **dumps_kwargs) + "\n").encode())
+    """Write ``obj`` (through :func:`jsonable`) as strict JSON with a final newline, atomically."""
+    text = json.dumps(jsonable(obj), indent=indent, allow_nan=False, **dumps_kwargs)
+    atomic_write_bytes(path, (text + "\n").encode())

@@ -21,7 +21,6 @@ that structurally zero entries do not divide), and the table reports the worst p
 
 from __future__ import annotations
 
-import json
 import math
 from typing import NamedTuple
 
@@ -30,7 +29,8 @@ import numpy as np
 from neck_sim.analytic.cables import cable_lengths, transmission_matrix
 from neck_sim.analytic.dynamics import gravity_spring_torque, mass_matrix
 from neck_sim.mjcf import build_model, model_index, pose_qpos
-from neck_sim.params import NeckParams, atomic_write_bytes
+from neck_sim.atomic import atomic_write_json
+from neck_sim.params import NeckParams
 
 __all__ = ["THRESHOLDS", "Row", "CrossvalReport", "crossval", "format_table"]
 
@@ -203,7 +203,7 @@ def format_table(report: CrossvalReport) -> str:
 
 
 def write_json(report: CrossvalReport, path) -> None:
-    atomic_write_bytes(path, (json.dumps(report.to_dict(), indent=2) + "\n").encode())
+    atomic_write_json(path, report.to_dict())
 
 
 # ----------------------------------------------------------------------------- dynamics (item 5)

@@ -48,7 +48,8 @@ from typing import NamedTuple
 import numpy as np
 
 from neck_sim.analytic.geometry import _joint_local, check_alpha, forward_kinematics
-from neck_sim.params import NeckParams, atomic_write_bytes
+from neck_sim.atomic import atomic_write_bytes
+from neck_sim.params import NeckParams
 
 __all__ = ["DEFAULT_TIMESTEP", "Layout", "build_xml", "build_model", "write_xml", "ModelIndex",
            "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path"]

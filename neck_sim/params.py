@@ -24,12 +24,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from neck_sim.atomic import atomic_write_bytes  # re-exported: the historical home
+from neck_sim.atomic import atomic_write_bytes
 
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
     "NeckParams", "ParameterError", "default_params", "describe", "load", "save",
-    "to_dict", "from_dict", "atomic_write_bytes",
+    "to_dict", "from_dict",
 ]
 
 

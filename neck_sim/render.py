@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import ctypes.util
 import io
-import math
 import os
 import subprocess
 import sys
@@ -32,7 +31,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from neck_sim.params import NeckParams, atomic_write_bytes, default_params
+from neck_sim.atomic import atomic_write_bytes
+from neck_sim.params import NeckParams, default_params
 
 __all__ = ["RenderError", "Framing", "figure10_poses", "posed_data", "framing", "render_poses",
            "compose_figure", "render_figure10", "BACKENDS", "FIGURE10_TIMES"]

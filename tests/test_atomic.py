@@ -25,3 +25,16 @@ def test_failed_write_leaves_the_old_file(tmp_path):
         atomic_write_json(path, {"x": object()})
     assert path.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+def test_json_is_strict_and_numpy_aware(tmp_path):
+    import json
+
+    import numpy as np
+
+    from neck_sim.atomic import jsonable
+
+    obj = {"a": np.arange(3), "b": np.float32(1.5), "c": float("nan"), "d": (np.int64(2), np.bool_(True)), 4: np.inf}
+    assert jsonable(obj) == {"a": [0, 1, 2], "b": 1.5, "c": None, "d": [2, True], "4": None}
+    atomic_write_json(tmp_path / "x.json", obj)
+    assert json.loads((tmp_path / "x.json").read_text())["c"] is None

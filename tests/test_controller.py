@@ -8,7 +8,6 @@ from controllers.estimators import CableModel, ElongationEstimator, JointAngleEs
 from controllers.trajectories import TrajectorySample, cycloidal_path
 from neck_sim.analytic import (cable_tension, gravity_spring_torque, mass_matrix, motor_angles_rigid, motor_friction,
                                transmission_matrix, transmission_matrix_dot)
-from neck_sim.params import default_params
 
 
 def _static_reference(alpha, alpha_dot=None, alpha_ddot=None):

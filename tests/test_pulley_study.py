@@ -1,4 +1,3 @@
-import numpy as np
 import pytest
 
 from neck_sim.params import default_params

@@ -26,7 +26,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic.cables import cable_kinematics, cable_lengths, transmission_matrix
+from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
 from neck_sim.analytic.geometry import _cross, _joint_local, _vec2, check_alpha, forward_kinematics
 from neck_sim.params import NeckParams
 

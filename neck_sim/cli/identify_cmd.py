@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
@@ -35,7 +34,7 @@ def run(args) -> int:
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
     from neck_sim.logs import read_log
-    from neck_sim.params import atomic_write_bytes
+    from neck_sim.atomic import atomic_write_json
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
     settings = IdentificationSettings(
@@ -59,7 +58,7 @@ def run(args) -> int:
         print("\n§5.6 simulators against the logged run\n" + comparison.table())
         summary["simulators"] = comparison.to_dict()
     if args.json:
-        atomic_write_bytes(args.json, (json.dumps(summary, indent=2) + "\n").encode())
+        atomic_write_json(args.json, summary)
         print(f"wrote {args.json}", file=sys.stderr)
     if args.plots:
         import os

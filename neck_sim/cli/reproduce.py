@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from neck_sim.atomic import atomic_write_bytes, atomic_write_json
-from neck_sim.params import NeckParams, default_params
+from neck_sim.params import default_params
 
 __all__ = ["ReproduceSettings", "reproduce"]
 
@@ -230,7 +230,7 @@ def reproduce(settings: ReproduceSettings) -> dict:
     sections.append(_diagnosis_section(results["diagnosis"]))
     report = _report(settings, results, sections, figures, render_note, out)
     atomic_write_bytes(os.path.join(out, "report.md"), report.encode())
-    atomic_write_json(os.path.join(out, "results.json"), _jsonable(results))
+    atomic_write_json(os.path.join(out, "results.json"), results)
     return results
 
 
@@ -340,20 +340,3 @@ def _versions() -> dict:
         except md.PackageNotFoundError:
             out[dist] = None
     return out
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(float(x)) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, NeckParams):
-        from neck_sim.params import to_dict
-        return to_dict(x)
-    return x
