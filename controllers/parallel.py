@@ -79,7 +79,7 @@ def run_all(specs: Sequence[RunSpec], *, workers: int | None = None, progress: b
     if workers < 1:
         raise ValueError(f"workers: must be >= 1, got {workers}")
     if workers == 1 or len(specs) <= 1:
-        return [_labelled(run_one, s, progress) for s in specs]
+        return [_run_labelled(s, progress) for s in specs]
 
     from tqdm.auto import tqdm
 
@@ -102,9 +102,9 @@ def run_all(specs: Sequence[RunSpec], *, workers: int | None = None, progress: b
     return results
 
 
-def _labelled(fun, spec: RunSpec, progress: bool) -> RunResult:
+def _run_labelled(spec: RunSpec, progress: bool) -> RunResult:
     try:
-        return fun(spec, progress)
+        return run_one(spec, progress)
     except Exception as exc:
         raise RuntimeError(f"run {spec.label!r} failed: {exc}") from exc
 

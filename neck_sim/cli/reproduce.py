@@ -53,7 +53,7 @@ class ReproduceSettings:
         return 0.5 if self.quick else 1.0
 
     @property
-    def id_sequences_note(self) -> str:
+    def duration_note(self) -> str:
         if self.duration_scale == 1.0:
             return "the paper's trajectories at full duration"
         return f"identification and control-test trajectories at {self.duration_scale:g} x duration"
@@ -93,9 +93,7 @@ class _IdentifiedValues:
     """The parts of an IdentificationResult that :func:`identified_params` reads, picklable."""
 
     f_s: np.ndarray
-    elastic: object
     variable: object
-    friction: object
 
 
 def reproduce(settings: ReproduceSettings) -> dict:
@@ -122,7 +120,7 @@ def reproduce(settings: ReproduceSettings) -> dict:
     params = default_params(3)
     st = _Stages(settings.progress)
     results: dict = {"settings": {"quick": settings.quick, "seed": settings.seed, "out": out,
-                                  "trajectories": settings.id_sequences_note},
+                                  "trajectories": settings.duration_note},
                      "versions": _versions(), "started": _now()}
     sections: list[str] = []
     figures: dict[str, str] = {}
@@ -134,7 +132,7 @@ def reproduce(settings: ReproduceSettings) -> dict:
         cv = crossval(params, samples=50 if settings.quick else 200, seed=settings.seed)
         results["crossval"] = cv.to_dict()
         sections.append("## 1. MuJoCo model against the analytic model\n\n"
-                        f"MJCF: `neck3x.xml`. {len(cv.rows) if hasattr(cv, 'rows') else ''} quantities at "
+                        f"MJCF: `neck3x.xml`. {len(cv.rows)} quantities at "
                         f"{50 if settings.quick else 200} random poses in [-60, 60] deg^3 "
                         f"({'all within' if cv.ok else 'NOT all within'} the thresholds).\n\n```\n"
                         f"{format_table(cv)}\n```\n")
@@ -189,7 +187,7 @@ def reproduce(settings: ReproduceSettings) -> dict:
     # 5. simulator comparison (worker) while the diagnosis runs here ----------------------------
     ctx = multiprocessing.get_context("fork")
     with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-        state = {"f_s": ident.f_s, "elastic": ident.elastic, "variable": ident.variable, "friction": ident.friction}
+        state = {"f_s": ident.f_s, "variable": ident.variable}
         sim_future = pool.submit(_simulators_worker, id_log_path, state, settings.seed)
         with st.stage("diagnosis from a rigid, frictionless model"):
             diag = diagnose_log(id_log_path, model="rigid", progress=settings.progress)
@@ -294,7 +292,7 @@ def _report(settings, results, sections, figures, render_note, out) -> str:
     t = results["timings_s"]
     L = ["# neck-sim: the paper reproduced in simulation", "",
          f"Generated {results['finished']} by `neck-sim reproduce{' --quick' if settings.quick else ''}` "
-         f"({settings.id_sequences_note}; seed {settings.seed}). Total {sum(t.values()):.0f} s. "
+         f"({settings.duration_note}; seed {settings.seed}). Total {sum(t.values()):.0f} s. "
          "Paper: *Identification and control of a 3-X cable-driven manipulator inspired from the bird neck*.", "",
          "Every number stands beside the paper's. The plant is MuJoCo with the paper's identified friction "
          "(Table 1) and variable-stiffness cables (Table 2) as its true values, so identification can be checked "
