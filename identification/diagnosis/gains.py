@@ -8,6 +8,7 @@ import numpy as np
 
 from identification.candidates import Fit, MeasuredData, pretension_offsets
 from identification.diagnosis.split import Split
+from neck_sim.analytic.dynamics import cable_stiffness, static_elongation
 from neck_sim.params import NeckParams
 
 
@@ -24,8 +25,8 @@ def residual_rms(data: MeasuredData, fit: Fit, res: np.ndarray, mask: np.ndarray
     n = data.n
     out = {"torque_Nm": rms(res[mask, :n]).tolist(), "elongation_m": rms(res[mask, n:]).tolist()}
     if fit.model.elastic:
-        stiff = np.maximum(fit.group("k"), 1.0) + (np.clip(fit.group("lambda"), 0, None) if fit.has("lambda") else 0) \
-            * np.maximum(fit.tension_hat, 0.0)
+        lam = np.clip(fit.group("lambda"), 0, None) if fit.has("lambda") else 0.0
+        stiff = cable_stiffness(fit.tension_hat, np.maximum(fit.group("k"), 1.0), lam)
         out["tension_N"] = rms((res[:, n:] * stiff)[mask]).tolist()
     else:
         out["tension_N"] = None
@@ -37,10 +38,9 @@ def model_elongation(data: MeasuredData, fit: Fit) -> np.ndarray:
     ``pretension`` subtracted: the encoders were zeroed with the cables already stretched)."""
     if not fit.model.elastic:
         return np.zeros((data.S, data.C))
-    t = np.maximum(fit.tension_hat, 0.0)
     k = np.maximum(fit.group("k"), 1.0)
     lam = np.clip(fit.group("lambda"), 0.0, None) if fit.has("lambda") else np.zeros(data.C)
-    return t / (k + lam * t) - pretension_offsets(fit.model, data.C)
+    return static_elongation(fit.tension_hat, k, lam) - pretension_offsets(fit.model, data.C)
 
 
 def alpha_hat_errors(data: MeasuredData, fits, masks: dict, step: int = 4) -> list[dict]:

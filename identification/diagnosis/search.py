@@ -13,6 +13,7 @@ from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis.statistics import score
+from neck_sim.analytic.dynamics import cable_stiffness
 
 
 def shape_grid(name: str) -> list[tuple]:
@@ -65,11 +66,11 @@ def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
     A = np.stack(cols, 1)
     k, lam = max(base.state.k[j], 1.0), max(base.state.lam[j], 0.0)
     for _ in range(3):
-        w = 1.0 / (k + lam * np.maximum(t, 0.0))
+        w = 1.0 / cable_stiffness(t, k, lam)
         v, *_ = np.linalg.lstsq(A * w[:, None], t * w, rcond=None)
         k = max(v[0], 1.0)
         lam = max(v[2], 0.0) if stiffening else 0.0
-    r = (t - A @ v) / (k + lam * np.maximum(t, 0.0))
+    r = (t - A @ v) / cable_stiffness(t, k, lam)
     return float(np.mean(r ** 2) / ctx.scales[data.n + j] ** 2)
 
 
