@@ -53,13 +53,17 @@ name, a list of names when ambiguous, or "none"), ``findings`` (ordered; each wi
 """
 
 from identification.diagnosis.candidate import CandidateScore
-from identification.diagnosis.gains import alpha_hat_errors, resimulate
+from identification.diagnosis.gains import AlphaHatErrors, AngleErrors, ResidualRMS, alpha_hat_errors
+from identification.diagnosis.parameters import Parameter
 from identification.diagnosis.pipeline import diagnose, diagnose_log
-from identification.diagnosis.result import Diagnosis
+from identification.diagnosis.resimulation import Resimulation, ResimulationErrors, resimulate
+from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary, method_text
 from identification.diagnosis.selection import Step
 from identification.diagnosis.settings import MODEL_SHORTCUTS, DiagnosisSettings, parse_model
 from identification.diagnosis.split import Split, split_samples
 from identification.diagnosis.statistics import channel_weights, score
 
-__all__ = ["DiagnosisSettings", "Split", "split_samples", "CandidateScore", "Step", "Diagnosis", "diagnose",
-           "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "score", "channel_weights", "resimulate", "alpha_hat_errors"]
+__all__ = ["DiagnosisSettings", "Split", "split_samples", "CandidateScore", "Step", "Diagnosis", "Finding", "Gain",
+           "ModelSummary", "ExtendedModel", "Parameter", "ResidualRMS", "AngleErrors", "AlphaHatErrors", "Resimulation",
+           "ResimulationErrors", "diagnose", "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "method_text", "score",
+           "channel_weights", "resimulate", "alpha_hat_errors"]
