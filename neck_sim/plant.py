@@ -259,8 +259,7 @@ class Plant:
         self.rigid_cables = bool(rigid_cables)
         _route_mujoco_warnings()
         if self.rigid_cables:
-            moot = [e.name for e in self.effects.active()
-                    if e.name in ("pulley_friction", "pretension", "cable_elasticity", "tension_stiffening")]
+            moot = [e.name for e in self.effects.active() if e.acts_on_cable_law]
             if moot:
                 raise ValueError(f"effects {moot}: act on the cable elongation or tension law, which rigid "
                                  "cables do not have")
@@ -298,12 +297,16 @@ class Plant:
         self._out_theta_dot = np.ctypeslib.as_array(self._c.theta_dot)[: n + 1]
         self._out_alpha = np.ctypeslib.as_array(self._c.alpha)[:n]
         self._out_alpha_dot = np.ctypeslib.as_array(self._c.alpha_dot)[:n]
-        delay = self.effects.actuation_delay
-        self._delay = 0.0 if delay is None else delay.delay
+        self._delay = self.effects.command_delay()
+        self._camera_delay = self.effects.camera_delay()      # a frame stamped t shows the neck at t - delay
         self._n1 = n + 1
         if not np.array_equal(ix.drive_actuator, np.arange(n + 1)):
             raise RuntimeError("model: the drive actuators must be the first N+1 actuators")
         self._fmax = act.f_max
+        python_only = [e.name for e in self._motor_effects if e.native_fields(n + 1) is None]
+        if python_only and _DISPATCH.choose(backend) == "native":
+            raise ValueError(f"effects {python_only}: no native kernel (native_fields) for the C callback; "
+                             "use Plant(..., backend='python')")
         _DISPATCH.register(self, backend)
         self._finalizer = weakref.finalize(self, _finalize, self._address, self._c)
         self.reset()
@@ -341,16 +344,9 @@ class Plant:
         put("st_speed", 1.0)
         put("st_smooth", 1.0)
         put("pf_c", 1.0)
-        e = self.effects
-        if e.viscous_friction is not None:
-            put("c_v", e.viscous_friction.per_cable(n1))
-        if e.stribeck_friction is not None:
-            put("st_df", e.stribeck_friction.per_cable(n1))
-            put("st_speed", e.stribeck_friction.speed)
-            put("st_smooth", e.stribeck_friction.smoothing)
-        if e.pulley_friction is not None:
-            put("pf_mu", e.pulley_friction.per_cable(n1))
-            put("pf_c", e.pulley_friction.c)
+        for e in self._motor_effects:
+            for name, values in (e.native_fields(n1) or {}).items():
+                put(name, values)
         return c
 
     # -- the Python backend: same physics from the definitions in analytic/ and effects
@@ -429,6 +425,8 @@ class Plant:
         d.qpos[ix.qpos_A], d.qpos[ix.qpos_B], d.qpos[ix.qpos_D] = pq.q_A, pq.q_B, pq.q_D
         d.qpos[ix.qpos_helper] = pq.q_helper
         d.qpos[ix.qpos_motor] = motor_angles_rigid(a0, self.params) / self._ratio
+        for e in self.effects.active():
+            e.setup_mujoco(m, d, ix)
         self._k = 0
         self._rng = np.random.default_rng(self.seed)
         self._frame = None
@@ -515,7 +513,7 @@ class Plant:
                 done = s
             for ev in breaks[s]:
                 if ev is None:
-                    self._take_frame((k0 + s) * self.timestep)
+                    self._take_frame((k0 + s) * self.timestep + self._camera_delay)
                 else:
                     ctrl[: self._n1] = ev
         if n > done:
@@ -523,7 +521,7 @@ class Plant:
 
     def _camera_step(self, k: int) -> int:
         """Sub-step index at whose end camera frame k (due at k / camera_rate_hz) is taken."""
-        return math.ceil(k / self.params.sensors.camera_rate_hz / self.timestep - 1e-6)
+        return math.ceil((k / self.params.sensors.camera_rate_hz - self._camera_delay) / self.timestep - 1e-6)
 
     def _delayed_commands(self, k0: int, n: int) -> list[tuple[int, np.ndarray]]:
         """(sub-step offset, command) pairs in force during this period, the first at offset 0.
