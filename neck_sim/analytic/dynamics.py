@@ -17,7 +17,7 @@ x_c = l_c - l_c0 + (r_d/R) theta, so that eqs (29), (30) read
 
     I_a theta_ddot = (r_d/R) (f - t_c - f_friction),    M_m alpha_ddot + c_m + g = Z t_c.
 
-Shapes: alpha, alpha_dot (..., N); forces, tensions (..., N+1).  SI units throughout.
+Shapes: alpha, alpha_dot (..., N); forces, tensions (..., m) (m cables, N + 1 for the paper's routing).  SI units throughout.
 """
 
 from __future__ import annotations
@@ -190,7 +190,7 @@ def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True) ->
 
 
 def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
-    """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., N+1), N.
+    """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., m), N.
 
     Expressed as a force along the cable; ``f_s`` defaults to the plant's ``params.friction.f_s``.
     """
@@ -199,7 +199,7 @@ def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
 
 
 def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
-    """Tension-only cable tension of eq (54) solved for t, (..., N+1), N.
+    """Tension-only cable tension of eq (54) solved for t, (..., m), N.
 
     t = (k x + c_a x_dot) / (1 - lambda x) for x > 0, 0 when slack (x <= 0) and never negative.
     Above ``cables.t_cap`` the elastic part continues with its tangent stiffness, so there is no
@@ -284,7 +284,7 @@ def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool =
 
 
 class ElasticState(NamedTuple):
-    """State of eqs (29)-(30): joint angles/speeds (..., N) and motor angles/speeds (..., N+1)."""
+    """State of eqs (29)-(30): joint angles/speeds (..., N) and motor angles/speeds (..., m)."""
 
     alpha: np.ndarray
     alpha_dot: np.ndarray
@@ -311,17 +311,17 @@ def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: boo
 def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], duration: float,
                      params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
                      alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10):
-    """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (N+1,) N; returns (t, ElasticState)."""
+    """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (m,) N; returns (t, ElasticState)."""
     from scipy.integrate import solve_ivp
 
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
     a0 = check_alpha(alpha0, n, "alpha0")
-    th0 = np.asarray(theta0, dtype=float).reshape(n + 1)
+    th0 = np.asarray(theta0, dtype=float).reshape(m)
     ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
-    td0 = np.zeros(n + 1) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
+    td0 = np.zeros(m) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
 
     def rhs(t, y):
-        st = ElasticState(y[:n], y[n:2 * n], y[2 * n:3 * n + 1], y[3 * n + 1:])
+        st = ElasticState(y[:n], y[n:2 * n], y[2 * n:2 * n + m], y[2 * n + m:])
         add, tdd, _ = elastic_derivative(st, forces(t), params, friction)
         return np.concatenate([st.alpha_dot, add, st.theta_dot, tdd])
 
@@ -331,7 +331,7 @@ def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], dura
     if not sol.success:
         raise RuntimeError(f"simulate_elastic: integration failed ({sol.message})")
     y = sol.y.T
-    return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:3 * n + 1], y[:, 3 * n + 1:])
+    return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:2 * n + m], y[:, 2 * n + m:])
 
 
 def simulate_rigid(alpha0, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,
