@@ -13,6 +13,10 @@ import numpy as np
 from scipy import stats
 
 from identification.diagnosis.split import Split
+from neck_sim.effects.base import clearly_nonzero   # the one rule, beside the effects' sign checks
+
+__all__ = ["mean_square", "channel_weights", "score", "block_scores", "chunk_reductions", "wilcoxon_p", "improvement",
+           "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome"]
 
 
 def mean_square(res: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -78,13 +82,6 @@ def effective_samples(n_samples: int, cutoff_hz: float, rate_hz: float) -> int:
     """Independent samples among ``n_samples`` low-passed at ``cutoff_hz`` and sampled at
     ``rate_hz``: one per 1 / (2 f_c) s (Nyquist)."""
     return int(n_samples * min(1.0, 2.0 * cutoff_hz / rate_hz))
-
-
-def clearly_nonzero(value: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """(K,) bool: the magnitudes that are clearly non-zero, |z| >= 4 and at least 25 % of the
-    largest |value| (the rule that locates an effect and checks its sign)."""
-    v = np.abs(np.asarray(value, dtype=float))
-    return (v >= 4 * np.asarray(sigma, dtype=float)) & (v >= 0.25 * v.max())
 
 
 @dataclass(frozen=True)
