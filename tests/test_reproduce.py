@@ -5,7 +5,7 @@ import json
 import pytest
 
 from neck_sim.cli import main
-from neck_sim.cli.reproduce import ReproduceSettings
+from neck_sim.experiments import ReproduceSettings
 
 
 @pytest.mark.slow
