@@ -60,8 +60,9 @@ class DryFriction(MotorEffect):
     def motor_force(self, theta_dot, tension=None, params: NeckParams | None = None):
         if params is None and (self.f_s is None or self.c_s is None):
             raise ValueError("dry_friction.motor_force: needs params when f_s or c_s is not set")
-        fs, cs = self.resolved(params) if params is not None else (np.asarray(self.f_s, float), self.c_s)
-        return (2 / np.pi) * np.arctan(cs * np.asarray(theta_dot, dtype=float)) * fs
+        td = np.asarray(theta_dot, dtype=float)
+        fs, cs = self.resolved(params) if params is not None else (self.per_cable(td.shape[-1]), self.c_s)
+        return (2 / np.pi) * np.arctan(cs * td) * fs
 
     def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
         """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., N+1)."""
