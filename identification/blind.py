@@ -1,7 +1,7 @@
 """Blind tests of the diagnosis: plant logs with a hidden effect drawn from a seed.
 
 A blind test hides one effect of the vocabulary (:mod:`neck_sim.effects`) in the simulated plant,
-writes a contract log, and lets :func:`identification.discovery.diagnose` find it without being
+writes a contract log, and lets :func:`identification.diagnosis.diagnose` find it without being
 told.  This module makes those logs quickly:
 
 * :func:`excitation_trajectory` -- the §5.2.2 identification shape (sequences of six cycloidal
@@ -157,7 +157,7 @@ class BlindCase:
     """A plant with one hidden effect and the model the diagnosis starts from.
 
     ``params`` the plant's constants, ``effects`` its hidden effects, ``model`` the baseline
-    structure for :func:`identification.discovery.diagnose` (component names), ``expect`` the
+    structure for :func:`identification.diagnosis.diagnose` (component names), ``expect`` the
     effect a correct diagnosis names, ``cables``/``joints`` where it was hidden (0-based).
     """
 
