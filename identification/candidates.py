@@ -70,7 +70,7 @@ from identification import regressors as reg
 from identification.least_squares import solve_weighted
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, decimate, lowpass, prepare
 
-__all__ = ["effect_names", "shape_grid", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
+__all__ = ["effect_names", "grid_of", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
            "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "EFFECTS", "REQUIRES",
            "SHAPE_GRIDS", "PAPER_MODEL"]
 
@@ -85,7 +85,7 @@ def paper_model() -> tuple[str, ...]:
     return effect_registry.paper_model()
 
 
-def shape_grid(name: str) -> dict[str, tuple]:
+def grid_of(name: str) -> dict[str, tuple]:
     """Shape parameter -> the grid a candidate ``name`` is tried at (searched shapes only)."""
     return {sh.name: tuple(sh.grid) for sh in effect_registry.get(name).shapes if sh.grid}
 
@@ -100,14 +100,14 @@ def __getattr__(name: str):
     if name == "REQUIRES":
         return {c.name: c.requires[0] for c in effect_registry.registered() if c.requires}
     if name == "SHAPE_GRIDS":
-        return {c.name: shape_grid(c.name) for c in effect_registry.registered() if shape_grid(c.name)}
+        return {c.name: grid_of(c.name) for c in effect_registry.registered() if grid_of(c.name)}
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
 class Term:
-    """One effect of a model with its shape parameters: ``Term("stribeck_friction", (("smoothing",
-    0.5), ("speed", 6.0)))``."""
+    """One effect of a model (its registered name) with its shape parameters fixed, e.g. the
+    Stribeck friction with ``(("smoothing", 0.5), ("speed", 6.0))``."""
 
     name: str
     shape: tuple = ()

@@ -24,12 +24,14 @@ class DryFriction(MotorEffect):
 
     name: ClassVar[str] = "dry_friction"
     description: ClassVar[str] = "arctan dry friction at the motors, eq (37)"
+    abbreviation: ClassVar[str] = "dry"            # column heads of tables
     baseline: ClassVar[bool] = True
     magnitude_field: ClassVar[str] = "f_s"
     columns: ClassVar[tuple] = (Column("f_s", "N"),)
     shapes: ClassVar[tuple] = (Shape("c_s", "s/rad", default=0.5, grid=(0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
                                      refine="log", span=2.0),)
     blind_magnitude: ClassVar[float] = 12.0     # N, f_s on one cable (baseline without friction)
+    blind_unit: ClassVar[str] = "N"
     f_s: tuple | float | None = None
     c_s: float | None = None
     cables: tuple | None = None
