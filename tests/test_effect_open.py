@@ -186,3 +186,13 @@ def test_a_motor_effect_without_native_kernel_needs_the_python_backend(registere
     finally:
         P.set_backend(previous or "auto")
         E.unregister(PythonBias.name)
+
+
+def test_the_command_line_lists_registered_effects(registered, capsys):
+    from neck_sim.cli import main
+
+    assert main(["effects", "--markdown"]) == 0
+    out = capsys.readouterr().out
+    for cls in E.registered():
+        assert f"| {cls.name} | {cls.description} |" in out
+    assert "bias [N] per cable" in out
