@@ -31,7 +31,8 @@ from neck_sim.analytic.geometry import _cross, _joint_local, _vec2, check_alpha,
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
-           "potential_energy", "kinetic_energy", "motor_friction", "cable_tension", "rigid_acceleration",
+           "potential_energy", "kinetic_energy", "motor_friction", "cable_tension", "cable_stiffness",
+           "static_elongation", "elongation_step", "elongation_series", "rigid_acceleration",
            "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
 
 
@@ -216,6 +217,49 @@ def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> n
     elastic = k * xe / denom + np.maximum(x - x_star, 0.0) * k / (1.0 - lam * x_star) ** 2
     t = elastic + c_a * x_dot / denom
     return np.where(x > 0, np.maximum(t, 0.0), 0.0)
+
+
+def cable_stiffness(tension, k, lam) -> np.ndarray:
+    """Secant stiffness k + lambda t of eq (54), (..., N+1) N/m, for tensions t (..., N+1) N
+    (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
+    return np.asarray(k, dtype=float) + np.asarray(lam, dtype=float) * np.maximum(np.asarray(tension, dtype=float), 0.0)
+
+
+def static_elongation(tension, k, lam) -> np.ndarray:
+    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., N+1) m, 0 for t <= 0.
+
+    The one definition of elongation from tension; :func:`elongation_step` and
+    :func:`elongation_series` add the damping c_a x_dot."""
+    return np.maximum(np.asarray(tension, dtype=float), 0.0) / cable_stiffness(tension, k, lam)
+
+
+def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
+    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (N+1,) m.
+
+    ``x`` (..., N+1) m the elongation at the start of the step, ``tension`` (..., N+1) N (>= 0)
+    applied during it, ``dt`` s, ``c_a`` N s/m > 0."""
+    return x + dt / c_a * (tension - cable_stiffness(tension, k, lam) * x)
+
+
+def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
+    """Elongations x (T, N+1) m of eq (54) for tensions (T, N+1) N held per sample of ``dt`` s.
+
+    Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
+    x_inf = :func:`static_elongation` (stable for any dt; c_a = 0 gives the static elongation);
+    ``x0`` (N+1,) m defaults to the static elongation of the first sample."""
+    tension = np.asarray(tension, dtype=float)
+    c_a = np.asarray(c_a, dtype=float)
+    stiff = cable_stiffness(tension, k, lam)
+    x_inf = static_elongation(tension, k, lam)
+    if np.all(c_a == 0):
+        return x_inf
+    decay = np.exp(-stiff * dt / np.where(c_a > 0, c_a, 1.0))
+    decay = np.where(c_a > 0, decay, 0.0)
+    x = np.empty_like(tension)
+    x[0] = x_inf[0] if x0 is None else x0
+    for i in range(1, tension.shape[0]):
+        x[i] = x_inf[i] + (x[i - 1] - x_inf[i]) * decay[i]
+    return x
 
 
 def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True) -> np.ndarray:
