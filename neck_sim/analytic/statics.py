@@ -1,0 +1,283 @@
+"""Statics of an N-X neck driven by any number m of cables (issue 15, item 3).
+
+A neck with fewer cables than N + 1 cannot hold an arbitrary pose: its equilibria form an
+m-dimensional set in alpha-space.  This module finds them and says whether they are stable.
+
+Potential.  With cable tensions t (..., m) the joints feel tau = Z t (eq 30) and the linkage
+g(alpha) (eq 25, gravity + side springs + payload); a static pose solves
+
+    r(alpha) = g(alpha) - Z(alpha) t = 0.
+
+* Given cable **forces** f (motors as ideal force sources, t = f): the potential is
+  U = V(alpha) + f . l_c(alpha) (Z = -dl_c/dalpha, eq 22), its Hessian
+  ``K_f = H_V - diag_i(sum_j dZ_ij/dalpha_i f_j)``.
+* Given **motor angles** theta (motors held, elastic cables of eq 54 at rest, x_c_dot = 0):
+  x_c = l_c - l_c0 + (r_d/R) theta, t = t(x_c), U = V + sum_j E_j(x_cj) with E_j' = t_j, and
+  ``K_theta = K_f(t) + Z diag(dt/dx) Z^T``.
+
+An equilibrium is *stable* when its stiffness matrix K (the Hessian of U) is positive definite.
+
+How K is computed (closed form, no numerical differentiation):
+
+* H_V: side springs from eqs (1), (2) and their derivatives; gravity (and a payload at the head
+  bar's centre) from the chain written as V_g = gravity * sum_i e_y . R(phi_i) u_i(alpha_i), with
+  phi_i = sum_{k<i} alpha_k and u_i the mass moment of joint i's bars plus everything above it;
+  its second derivatives are those of rotations (``potential_hessian``).
+* The cable terms use that cable j's length is a sum of per-joint segments, so d^2 l_j / dalpha^2
+  is diagonal, = -Zdot(alpha, alpha_dot = 1) (``transmission_matrix_dot``).
+
+Both are held against finite differences of the potential in ``tests/test_statics.py``.
+
+Shapes: alpha (..., N) rad, forces / tensions / theta (..., m); K (..., N, N) N m/rad.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from neck_sim.analytic.cables import cable_kinematics, cable_lengths
+from neck_sim.analytic.dynamics import cable_tension, gravity_spring_torque
+from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables, side_lengths
+from neck_sim.params import NeckParams
+
+__all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
+           "force_stiffness", "motor_stiffness", "equilibrium_for_forces", "equilibrium_for_motor_angles",
+           "motor_angles_for", "with_payload"]
+
+
+class Equilibrium(NamedTuple):
+    """Static poses found for a batch of forces or motor angles.
+
+    alpha (..., N) rad; tension (..., m) N at the pose; residual (..., N) N m (g - Z t);
+    stiffness (..., N, N) N m/rad, its eigenvalues (..., N) ascending; converged (...) bool
+    (|residual| below tolerance, inside the joint range); stable (...) bool: converged and K
+    positive definite.
+    """
+
+    alpha: np.ndarray
+    tension: np.ndarray
+    residual: np.ndarray
+    stiffness: np.ndarray
+    eigenvalues: np.ndarray
+    converged: np.ndarray
+    stable: np.ndarray
+
+
+def with_payload(params: NeckParams, payload_mass: float | None) -> NeckParams:
+    """``params`` with a point mass (kg) at the head bar's centre (None keeps the file's value)."""
+    if payload_mass is None:
+        return params
+    if not np.isfinite(payload_mass) or payload_mass < 0:
+        raise ValueError(f"payload_mass: must be finite and >= 0 kg, got {payload_mass!r}")
+    return params.replace(**{"inertia.payload_mass": float(payload_mass)})
+
+
+def _rot_apply(c, s, v):
+    """R(phi) v for cos/sin (..., N) and vectors (..., N, 2)."""
+    return c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]
+
+
+def _chain(alpha: np.ndarray, params: NeckParams):
+    """Joint-local corners with derivatives, and cos/sin of the base-bar angles phi_i."""
+    g = params.geometry
+    jl = _joint_local(alpha, g.b, g.L)
+    phi = np.cumsum(alpha, -1) - alpha
+    return jl, np.cos(phi), np.sin(phi)
+
+
+def potential_hessian(alpha, params: NeckParams) -> np.ndarray:
+    """Hessian of the gravity + side-spring (+ payload) potential V, closed form, (..., N, N) N m/rad.
+
+    Its gradient is g(alpha) of eq (25) (:func:`~neck_sim.analytic.gravity_spring_torque`).
+    """
+    n = params.n_joints
+    a = check_alpha(alpha, params.n_joints)
+    g, inert = params.geometry, params.inertia
+    jl, c, s = _chain(a, params)
+    A = np.array([-g.b / 2, 0.0])
+    B = np.array([g.b / 2, 0.0])
+    md, mb = inert.diagonal_mass, inert.bar_mass
+    per_joint = 2 * md + mb
+    above = per_joint * (n - 1 - np.arange(n)) + inert.payload_mass        # mass carried by joint i's top bar
+    top = (mb + above)[:, None]
+    u = md * (A + B + jl.C + jl.D) / 2 + top * (jl.C + jl.D) / 2           # mass moment of joint i
+    du = md * (jl.dC + jl.dD) / 2 + top * (jl.dC + jl.dD) / 2
+    ddu = md * (jl.ddC + jl.ddD) / 2 + top * (jl.ddC + jl.ddD) / 2
+    a_i = -_rot_apply(c, s, u)[1]               # d2/dphi2 of e_y.R u
+    b_i = _rot_apply(c, s, du)[0]               # d2/dphi dalpha_i of e_y.R u
+    c_i = _rot_apply(c, s, ddu)[1]              # d2/dalpha_i^2
+    tail = np.cumsum(a_i[..., ::-1], -1)[..., ::-1] - a_i                  # sum_{i > j} a_i
+    idx = np.arange(n)
+    j = np.maximum(idx[:, None], idx[None, :])
+    H = tail[..., j] + b_i[..., j]
+    H[..., idx, idx] = tail + c_i
+    H *= inert.gravity
+    sd = side_lengths(a, params)
+    k = np.asarray(params.springs.stiffness)
+    l0 = params.springs.rest_length
+    H[..., idx, idx] += k * ((sd.l_l - l0) * sd.ddl_l + sd.dl_l ** 2 + (sd.l_r - l0) * sd.ddl_r + sd.dl_r ** 2)
+    return H
+
+
+def head_jacobian(alpha, params: NeckParams) -> np.ndarray:
+    """d(head x, head y, head angle)/dalpha of the head bar's centre, closed form, (..., 3, N)."""
+    a = check_alpha(alpha, params.n_joints)
+    jl, c, s = _chain(a, params)
+    mx, my = _rot_apply(c, s, (jl.C + jl.D) / 2)
+    dmx, dmy = _rot_apply(c, s, (jl.dC + jl.dD) / 2)
+    # S R m summed over the joints above k, plus R m' of joint k itself
+    tail_x = np.cumsum(-my[..., ::-1], -1)[..., ::-1] + my
+    tail_y = np.cumsum(mx[..., ::-1], -1)[..., ::-1] - mx
+    return np.stack([tail_x + dmx, tail_y + dmy, np.ones_like(a)], -2)
+
+
+def tension_slope(x, params: NeckParams) -> np.ndarray:
+    """dt/dx of the static cable law (eq 54 at x_dot = 0), (..., m) N/m; 0 where slack."""
+    cab = params.cables
+    k, lam = np.asarray(cab.k), np.asarray(cab.lam)
+    x = np.asarray(x, dtype=float)
+    x_star = cab.t_cap / (k + lam * cab.t_cap)
+    return np.where(x > 0, k / (1.0 - lam * np.minimum(x, x_star)) ** 2, 0.0)
+
+
+def tension_elongation(tension, params: NeckParams) -> np.ndarray:
+    """Elongation x_c (m) at which a resting cable carries ``tension`` (N): eq (54) inverted."""
+    cab = params.cables
+    k, lam = np.asarray(cab.k), np.asarray(cab.lam)
+    t = check_cables(tension, params.n_cables, "tension")
+    if np.any(t < 0):
+        raise ValueError(f"tension: cables only pull, got {t.min():.3g} N")
+    x_star = cab.t_cap / (k + lam * cab.t_cap)
+    beyond = (t - cab.t_cap) * (1.0 - lam * x_star) ** 2 / k
+    return np.where(t <= cab.t_cap, t / (k + lam * t), x_star + beyond)
+
+
+def motor_angles_for(alpha, tension, params: NeckParams) -> np.ndarray:
+    """Motor angles theta (..., m) rad that hold pose ``alpha`` with resting cables at ``tension``
+    (inverse statics for motor-angle control): theta = (R/r_d)(x_c(t) - (l_c - l_c0))."""
+    act = params.actuation
+    return (act.R / act.r_d) * (tension_elongation(tension, params) - cable_lengths(alpha, params))
+
+
+def _cable_curvature_term(Zp: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """-diag_i(sum_j dZ_ij/dalpha_i t_j): the cables' geometric stiffness, (..., N, N)."""
+    d = -np.einsum("...ij,...j->...i", Zp, t)
+    return d[..., :, None] * np.eye(d.shape[-1])
+
+
+def force_stiffness(alpha, forces, params: NeckParams) -> np.ndarray:
+    """K_f: Hessian of V + f . l_c (cables as ideal force sources), (..., N, N) N m/rad."""
+    a = check_alpha(alpha, params.n_joints)
+    f = check_cables(forces, params.n_cables, "forces")
+    ck = cable_kinematics(a, np.ones_like(a), params)
+    return potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, f)
+
+
+def motor_stiffness(alpha, theta, params: NeckParams) -> np.ndarray:
+    """K_theta: Hessian of V + sum_j E_j(x_cj) with motors held at ``theta``, (..., N, N) N m/rad."""
+    return _motor_terms(check_alpha(alpha, params.n_joints), _check_theta(theta, params), params)[1]
+
+
+def _check_theta(theta, params: NeckParams) -> np.ndarray:
+    return check_cables(theta, params.n_cables, "theta")
+
+
+def _force_terms(a, f, params):
+    ck = cable_kinematics(a, np.ones_like(a), params)
+    r = gravity_spring_torque(a, params) - np.einsum("...ij,...j->...i", ck.Z, f)
+    K = potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, f)
+    return r, K, np.broadcast_to(f, r.shape[:-1] + f.shape[-1:])
+
+
+def _motor_terms(a, theta, params):
+    act = params.actuation
+    ck = cable_kinematics(a, np.ones_like(a), params)
+    x = ck.lengths + (act.r_d / act.R) * theta
+    t = cable_tension(x, np.zeros_like(x), params)
+    r = gravity_spring_torque(a, params) - np.einsum("...ij,...j->...i", ck.Z, t)
+    K = (potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, t)
+         + np.einsum("...ij,...j,...kj->...ik", ck.Z, tension_slope(x, params), ck.Z))
+    return r, K, t
+
+
+def _newton(terms, a0: np.ndarray, params: NeckParams, tol: float, max_iter: int, max_step: float) -> Equilibrium:
+    """Batched Newton on r(alpha) = 0 with the exact Jacobian K, steps limited to ``max_step`` rad.
+
+    Vectorised over the batch (thousands of force samples at once); samples that have converged
+    are left out of later iterations.
+    """
+    n = params.n_joints
+    amax = params.geometry.alpha_max
+    alpha = np.array(a0, dtype=float).reshape(-1, n)
+    active = np.arange(alpha.shape[0])
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        r, K, _ = terms(alpha[active], active)
+        done = np.max(np.abs(r), -1) < tol
+        keep = ~done & np.all(np.isfinite(r), -1)
+        active, r, K = active[keep], r[keep], K[keep]
+        if active.size == 0:
+            break
+        try:
+            step = np.linalg.solve(K, r[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            step = np.einsum("...ij,...j->...i", np.linalg.pinv(K), r)
+        big = np.max(np.abs(step), -1, keepdims=True)
+        step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))
+        new = alpha[active] - step
+        # leave the joint range -> stop that sample (the geometry is undefined beyond it)
+        inside = np.all(np.abs(new) < amax, -1)
+        alpha[active[inside]] = new[inside]
+        alpha[active[~inside]] = np.nan
+        active = active[inside]
+    everything = np.arange(alpha.shape[0])
+    ok = np.all(np.isfinite(alpha), -1)
+    safe = np.where(ok[:, None], alpha, 0.0)
+    r, K, t = terms(safe, everything)
+    eig = np.linalg.eigvalsh(K)
+    converged = ok & (np.max(np.abs(r), -1) < tol * 10)
+    alpha = np.where(ok[:, None], alpha, np.nan)
+    return Equilibrium(alpha, t, r, K, eig, converged, converged & (eig[:, 0] > 0))
+
+
+def _start(alpha0, shape, params):
+    n = params.n_joints
+    if alpha0 is None:
+        return np.zeros(shape + (n,))
+    a0 = check_alpha(alpha0, n, "alpha0")
+    return np.broadcast_to(a0, shape + (n,)).copy()
+
+
+def equilibrium_for_forces(forces, params: NeckParams, alpha0=None, *, payload_mass: float | None = None,
+                           tol: float = 1e-9, max_iter: int = 60, max_step: float = 0.1) -> Equilibrium:
+    """Static poses for constant cable forces ``forces`` (..., m) N (t = f), from ``alpha0``.
+
+    Stability is that of force control (``K_f``).  ``payload_mass`` (kg) adds a point mass at the
+    head; ``tol`` is the torque residual (N m) accepted.
+    """
+    p = with_payload(params, payload_mass)
+    f = check_cables(forces, p.n_cables, "forces")
+    if np.any(f < 0):
+        raise ValueError(f"forces: cables only pull, got {f.min():.3g} N")
+    flat = f.reshape(-1, p.n_cables)
+    a0 = _start(alpha0, f.shape[:-1], p).reshape(-1, p.n_joints)
+    eq = _newton(lambda a, idx: _force_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
+    return Equilibrium(*(x.reshape(f.shape[:-1] + x.shape[1:]) for x in eq))
+
+
+def equilibrium_for_motor_angles(theta, params: NeckParams, alpha0=None, *, payload_mass: float | None = None,
+                                 tol: float = 1e-9, max_iter: int = 60, max_step: float = 0.1) -> Equilibrium:
+    """Static poses with motors held at ``theta`` (..., m) rad and elastic cables (eq 54, at rest).
+
+    theta = 0 is the straight pose with unstretched cables (convention of
+    :mod:`neck_sim.analytic.cables`).  Stability is that of held motors (``K_theta``).
+    """
+    p = with_payload(params, payload_mass)
+    th = _check_theta(theta, p)
+    flat = th.reshape(-1, p.n_cables)
+    a0 = _start(alpha0, th.shape[:-1], p).reshape(-1, p.n_joints)
+    eq = _newton(lambda a, idx: _motor_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
+    return Equilibrium(*(x.reshape(th.shape[:-1] + x.shape[1:]) for x in eq))
