@@ -44,7 +44,7 @@ from neck_sim.params import NeckParams
 
 __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
            "force_stiffness", "motor_stiffness", "equilibrium_for_forces", "equilibrium_for_motor_angles",
-           "motor_angles_for", "with_payload"]
+           "motor_angles_for", "with_payload", "HoldingSolution", "inverse_statics", "friction_band"]
 
 
 class Equilibrium(NamedTuple):
@@ -281,3 +281,114 @@ def equilibrium_for_motor_angles(theta, params: NeckParams, alpha0=None, *, payl
     a0 = _start(alpha0, th.shape[:-1], p).reshape(-1, p.n_joints)
     eq = _newton(lambda a, idx: _motor_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
     return Equilibrium(*(x.reshape(th.shape[:-1] + x.shape[1:]) for x in eq))
+
+
+class HoldingSolution(NamedTuple):
+    """Inverse statics: forces (m,) N in the box that hold ``equilibrium`` (a single pose), and
+    the task error left (rad per joint for a joint target, m / rad for a head target)."""
+
+    forces: np.ndarray
+    equilibrium: Equilibrium
+    task_error: np.ndarray
+
+
+def _task(alpha, params, alpha_target, head_target):
+    """Task value and its alpha-Jacobian: joint angles, or head (x, y[, angle])."""
+    if alpha_target is not None:
+        return alpha - alpha_target, np.eye(params.n_joints)
+    from neck_sim.analytic.geometry import forward_kinematics
+    kin = forward_kinematics(alpha, params)
+    head = np.r_[kin.head_position, kin.head_angle][: head_target.size]
+    return head - head_target, head_jacobian(alpha, params)[: head_target.size]
+
+
+def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, alpha0=None,
+                    f_min: float | None = None, f_max: float | None = None, regularisation: float = 1e-3,
+                    payload_mass: float | None = None) -> HoldingSolution:
+    """Forces in [f_min, f_max] whose equilibrium comes closest to a target (inverse statics).
+
+    The target is a pose ``alpha_target`` (N,) rad or a head pose ``head_target`` (x, y) m or
+    (x, y, angle) m, m, rad.  With fewer cables than N + 1 a pose is in general not reachable: the
+    answer is the reachable pose nearest to it (least squares on the equilibrium manifold, scipy's
+    bounded ``least_squares`` with the exact Jacobian d alpha/d f = K_f^-1 Z of the implicit
+    function theorem).  ``regularisation`` (relative to f_max) prefers small forces among the
+    equally good ones (the co-contraction null space of N + 1 cables).  Defaults: the actuation
+    limits f_min, f_max.
+    """
+    from scipy.optimize import least_squares, lsq_linear
+
+    p = with_payload(params, payload_mass)
+    n, m = p.n_joints, p.n_cables
+    lo = p.actuation.f_min if f_min is None else float(f_min)
+    hi = p.actuation.f_max if f_max is None else float(f_max)
+    if not 0 <= lo < hi:
+        raise ValueError(f"force box: need 0 <= f_min < f_max, got [{lo}, {hi}] N")
+    if (alpha_target is None) == (head_target is None):
+        raise ValueError("inverse_statics: give exactly one of alpha_target (N,) and head_target (2,) or (3,)")
+    if alpha_target is not None:
+        alpha_target = check_alpha(alpha_target, n, "alpha_target")
+        if np.any(np.abs(alpha_target) >= p.geometry.alpha_max):
+            raise ValueError(f"alpha_target: outside the joint range |alpha| < {p.geometry.alpha_max:.3g} rad")
+        start = alpha_target
+    else:
+        head_target = np.asarray(head_target, dtype=float)
+        if head_target.shape not in ((2,), (3,)) or not np.all(np.isfinite(head_target)):
+            raise ValueError(f"head_target: expected finite (x, y) or (x, y, angle), got {head_target!r}")
+        start = np.zeros(n)
+    a_init = np.zeros(n) if alpha0 is None else check_alpha(alpha0, n, "alpha0")
+    Z0 = cable_kinematics(start, np.zeros(n), p).Z
+    f0 = lsq_linear(np.vstack([Z0, regularisation * np.eye(m)]),
+                    np.r_[gravity_spring_torque(start, p), np.full(m, regularisation * lo)], bounds=(lo, hi)).x
+    state = {"alpha": a_init, "err": None}
+    w = regularisation / hi
+
+    def solve(f):
+        eq = equilibrium_for_forces(f, p, state["alpha"])
+        if not eq.converged:
+            eq = equilibrium_for_forces(f, p)
+        return eq
+
+    def fun(f):
+        eq = solve(f)
+        if not eq.converged:            # the forces throw the neck out of its range: push back
+            return 10 * np.abs(state["err"]) + 1.0 if state["err"] is not None else np.full(n + m, 1e3)
+        state["alpha"] = eq.alpha
+        err, _ = _task(eq.alpha, p, alpha_target, head_target)
+        state["err"] = np.r_[err, w * (f - lo)]
+        return state["err"]
+
+    def jac(f):
+        eq = solve(f)
+        a = eq.alpha if eq.converged else state["alpha"]
+        _, J = _task(a, p, alpha_target, head_target)
+        Z = cable_kinematics(a, np.zeros(n), p).Z
+        dadf = np.linalg.solve(force_stiffness(a, f, p), Z)
+        return np.vstack([J @ dadf, w * np.eye(m)])
+
+    sol = least_squares(fun, f0, jac=jac, bounds=(lo, hi), xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+    eq = solve(sol.x)
+    if not eq.converged:
+        raise ValueError("inverse_statics: no equilibrium inside the joint range for any force found "
+                         "(target unreachable with forces in the box)")
+    err, _ = _task(eq.alpha, p, alpha_target, head_target)
+    return HoldingSolution(sol.x, eq, err)
+
+
+def friction_band(forces, alpha, params: NeckParams, f_s=None, max_corners: int = 256, seed: int = 0) -> Equilibrium:
+    """Equilibria between dry friction acting one way and the other at every motor.
+
+    A motor commanded ``forces`` (m,) N that has stopped holds its cable at any tension in
+    [f - f_s, f + f_s] (eq 37 at its limits: winding in, friction subtracts; paying out, it adds).
+    Returns the equilibria (K, N) at the 2^m sign corners (a random ``max_corners`` of them for many
+    cables), solved from the pose ``alpha`` (N,) the forces hold.  ``f_s`` defaults to
+    ``params.friction.f_s``.
+    """
+    f = check_cables(forces, params.n_cables, "forces")
+    fs = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
+    m = params.n_cables
+    if 2 ** m <= max_corners:
+        signs = ((np.arange(2 ** m)[:, None] >> np.arange(m)) & 1) * 2.0 - 1.0
+    else:
+        signs = np.random.default_rng(seed).choice([-1.0, 1.0], (max_corners, m))
+    tension = np.maximum(f + signs * fs, 0.0)
+    return equilibrium_for_forces(tension, params, alpha)

@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "simulate": "simulate_cmd",
     "diagnose": "diagnose_cmd",
     "render": "render_cmd",
+    "design": "design_cmd",
 }
 
 
