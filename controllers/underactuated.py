@@ -182,9 +182,8 @@ class UnderactuatedController:
 
     def _estimate(self, theta) -> None:
         # one Newton step from the last estimate per refresh: the pose moves little in between
-        eq = equilibrium_for_motor_angles(theta, self.params, self.alpha_hat, max_iter=1)
-        if np.all(np.isfinite(eq.alpha)):
-            self.alpha_hat = eq.alpha
+        eq = equilibrium_for_motor_angles(theta, self.params, self.alpha_hat, max_iter=2)
+        self.alpha_hat = eq.alpha
         self._lengths = cable_lengths(self.alpha_hat, self.params)
         self._Z = transmission_matrix(self.alpha_hat, self.params)
 

@@ -20,7 +20,7 @@ OUTPUT_FILES = ("report.md", "results.json") + FIGURES
 def _save(fig, path) -> None:
     import matplotlib.pyplot as plt
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
     atomic_write_bytes(path, buf.getvalue())
 
@@ -29,7 +29,7 @@ def _grid(k):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, k, figsize=(4.2 * k, 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, k, figsize=(4.2 * k, 4.4), squeeze=False, layout="constrained")
     return fig, axes[0]
 
 
@@ -116,7 +116,7 @@ def _forces_figure(results, path):
 
 def _stiffness_figure(results, path):
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(6, 4), layout="constrained")
     for r in results:
         k = r.workspace.lateral_stiffness[r.workspace.feasible]
         if k.size:

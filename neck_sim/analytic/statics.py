@@ -50,7 +50,7 @@ __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope",
 class Equilibrium(NamedTuple):
     """Static poses found for a batch of forces or motor angles.
 
-    alpha (..., N) rad; tension (..., m) N at the pose; residual (..., N) N m (g - Z t);
+    alpha (..., N) rad (the last iterate where not converged); tension (..., m) N at the pose; residual (..., N) N m (g - Z t);
     stiffness (..., N, N) N m/rad, its eigenvalues (..., N) ascending; converged (...) bool
     (|residual| below tolerance, inside the joint range); stable (...) bool: converged and K
     positive definite.
@@ -203,44 +203,44 @@ def _motor_terms(a, theta, params):
 
 
 def _newton(terms, a0: np.ndarray, params: NeckParams, tol: float, max_iter: int, max_step: float) -> Equilibrium:
-    """Batched Newton on r(alpha) = 0 with the exact Jacobian K, steps limited to ``max_step`` rad.
+    """Batched Levenberg-Marquardt on r(alpha) = 0 with the exact Jacobian K (the stiffness).
 
-    Vectorised over the batch (thousands of force samples at once); samples that have converged
-    are left out of later iterations.
+    A step -(K^T K + mu I)^-1 K^T r, at most ``max_step`` rad per joint, is kept when it lowers
+    |r| and stays inside the joint range (then mu shrinks, towards Newton's step), else mu grows:
+    near-singular K (soft modes of an underactuated neck) makes plain Newton cycle.  Vectorised
+    over the batch; converged samples leave the iteration.
     """
     n = params.n_joints
     amax = params.geometry.alpha_max
     alpha = np.array(a0, dtype=float).reshape(-1, n)
+    eye = np.eye(n)
     active = np.arange(alpha.shape[0])
+    r, K, _ = terms(alpha, active)
+    mu = np.full(active.size, 1e-9)
     for _ in range(max_iter):
+        keep = (np.max(np.abs(r), -1) >= tol) & np.all(np.isfinite(r), -1) & (mu < 1e6)
+        active, r, K, mu = active[keep], r[keep], K[keep], mu[keep]
         if active.size == 0:
             break
-        r, K, _ = terms(alpha[active], active)
-        done = np.max(np.abs(r), -1) < tol
-        keep = ~done & np.all(np.isfinite(r), -1)
-        active, r, K = active[keep], r[keep], K[keep]
-        if active.size == 0:
-            break
-        try:
-            step = np.linalg.solve(K, r[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            step = np.einsum("...ij,...j->...i", np.linalg.pinv(K), r)
+        Kt = np.swapaxes(K, -1, -2)
+        KtK = Kt @ K
+        scale = np.einsum("...ii->...", KtK)[:, None, None] / n
+        step = np.linalg.solve(KtK + (mu[:, None, None] * scale) * eye, (Kt @ r[..., None]))[..., 0]
         big = np.max(np.abs(step), -1, keepdims=True)
         step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))
         new = alpha[active] - step
-        # leave the joint range -> stop that sample (the geometry is undefined beyond it)
         inside = np.all(np.abs(new) < amax, -1)
-        alpha[active[inside]] = new[inside]
-        alpha[active[~inside]] = np.nan
-        active = active[inside]
+        r_new, K_new, _ = terms(np.where(inside[:, None], new, alpha[active]), active)
+        better = inside & (np.sum(r_new ** 2, -1) < np.sum(r ** 2, -1))
+        alpha[active[better]] = new[better]
+        r[better], K[better] = r_new[better], K_new[better]
+        mu = np.where(better, np.maximum(mu / 10, 1e-12), mu * 10)
     everything = np.arange(alpha.shape[0])
-    ok = np.all(np.isfinite(alpha), -1)
-    safe = np.where(ok[:, None], alpha, 0.0)
-    r, K, t = terms(safe, everything)
+    r, K, t = terms(alpha, everything)
     eig = np.linalg.eigvalsh(K)
-    converged = ok & (np.max(np.abs(r), -1) < tol * 10)
-    alpha = np.where(ok[:, None], alpha, np.nan)
-    return Equilibrium(alpha, t, r, K, eig, converged, converged & (eig[:, 0] > 0))
+    converged = np.max(np.abs(r), -1) < tol * 10
+    return Equilibrium(alpha, t, r, K, eig, converged,
+                       converged & (eig[:, 0] > 0))
 
 
 def _start(alpha0, shape, params):
@@ -309,16 +309,19 @@ def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, 
 
     The target is a pose ``alpha_target`` (N,) rad or a head pose ``head_target`` (x, y) m or
     (x, y, angle) m, m, rad.  With fewer cables than N + 1 a pose is in general not reachable: the
-    answer is the reachable pose nearest to it (least squares on the equilibrium manifold, scipy's
-    bounded ``least_squares`` with the exact Jacobian d alpha/d f = K_f^-1 Z of the implicit
-    function theorem).  ``regularisation`` (relative to f_max) prefers small forces among the
-    equally good ones (the co-contraction null space of N + 1 cables).  Defaults: the actuation
-    limits f_min, f_max.
+    answer is the nearest pose of the reachable set, found over poses and tensions together
+    (scipy's SLSQP: minimise |task(alpha) - target|^2 subject to g(alpha) = Z(alpha) t and the
+    force box, with the exact constraint Jacobian [K_f, -Z]); searching over tensions alone would
+    have to follow the equilibrium map, which is many-valued where force control is unstable.
+    ``regularisation`` (relative to f_max) prefers small tensions among equally good ones (the
+    co-contraction of N + 1 cables) and, for a head target, poses near ``alpha0``.  Defaults:
+    the actuation limits f_min, f_max; ``alpha0`` the target pose or the straight one.
     """
-    from scipy.optimize import least_squares, lsq_linear
+    from scipy.optimize import lsq_linear, minimize
 
     p = with_payload(params, payload_mass)
     n, m = p.n_joints, p.n_cables
+    amax = p.geometry.alpha_max
     lo = p.actuation.f_min if f_min is None else float(f_min)
     hi = p.actuation.f_max if f_max is None else float(f_max)
     if not 0 <= lo < hi:
@@ -327,51 +330,45 @@ def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, 
         raise ValueError("inverse_statics: give exactly one of alpha_target (N,) and head_target (2,) or (3,)")
     if alpha_target is not None:
         alpha_target = check_alpha(alpha_target, n, "alpha_target")
-        if np.any(np.abs(alpha_target) >= p.geometry.alpha_max):
-            raise ValueError(f"alpha_target: outside the joint range |alpha| < {p.geometry.alpha_max:.3g} rad")
-        start = alpha_target
+        if np.any(np.abs(alpha_target) >= amax):
+            raise ValueError(f"alpha_target: outside the joint range |alpha| < {amax:.3g} rad")
+        start = alpha_target if alpha0 is None else check_alpha(alpha0, n, "alpha0")
     else:
         head_target = np.asarray(head_target, dtype=float)
         if head_target.shape not in ((2,), (3,)) or not np.all(np.isfinite(head_target)):
             raise ValueError(f"head_target: expected finite (x, y) or (x, y, angle), got {head_target!r}")
-        start = np.zeros(n)
-    a_init = np.zeros(n) if alpha0 is None else check_alpha(alpha0, n, "alpha0")
+        start = np.zeros(n) if alpha0 is None else check_alpha(alpha0, n, "alpha0")
     Z0 = cable_kinematics(start, np.zeros(n), p).Z
-    f0 = lsq_linear(np.vstack([Z0, regularisation * np.eye(m)]),
-                    np.r_[gravity_spring_torque(start, p), np.full(m, regularisation * lo)], bounds=(lo, hi)).x
-    state = {"alpha": a_init, "err": None}
+    f0 = lsq_linear(Z0, gravity_spring_torque(start, p), bounds=(lo, hi)).x
     w = regularisation / hi
+    w_pose = regularisation if head_target is not None else 0.0
 
-    def solve(f):
-        eq = equilibrium_for_forces(f, p, state["alpha"])
-        if not eq.converged:
-            eq = equilibrium_for_forces(f, p)
-        return eq
+    def objective(x):
+        a, f = x[:n], x[n:]
+        err, J = _task(a, p, alpha_target, head_target)
+        value = 0.5 * (err @ err + w * w * np.sum((f - lo) ** 2) + w_pose ** 2 * np.sum((a - start) ** 2))
+        return value, np.r_[J.T @ err + w_pose ** 2 * (a - start), w * w * (f - lo)]
 
-    def fun(f):
-        eq = solve(f)
-        if not eq.converged:            # the forces throw the neck out of its range: push back
-            return 10 * np.abs(state["err"]) + 1.0 if state["err"] is not None else np.full(n + m, 1e3)
-        state["alpha"] = eq.alpha
-        err, _ = _task(eq.alpha, p, alpha_target, head_target)
-        state["err"] = np.r_[err, w * (f - lo)]
-        return state["err"]
+    def balance(x):
+        a, f = x[:n], x[n:]
+        return _force_terms(a, f, p)[0]
 
-    def jac(f):
-        eq = solve(f)
-        a = eq.alpha if eq.converged else state["alpha"]
-        _, J = _task(a, p, alpha_target, head_target)
-        Z = cable_kinematics(a, np.zeros(n), p).Z
-        dadf = np.linalg.solve(force_stiffness(a, f, p), Z)
-        return np.vstack([J @ dadf, w * np.eye(m)])
+    def balance_jac(x):
+        a, f = x[:n], x[n:]
+        ck = cable_kinematics(a, np.ones(n), p)
+        return np.hstack([potential_hessian(a, p) + _cable_curvature_term(ck.Zdot, f), -ck.Z])
 
-    sol = least_squares(fun, f0, jac=jac, bounds=(lo, hi), xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
-    eq = solve(sol.x)
+    bounds = [(-0.98 * amax, 0.98 * amax)] * n + [(lo, hi)] * m
+    sol = minimize(objective, np.r_[start, f0], jac=True, method="SLSQP", bounds=bounds,
+                   constraints=[{"type": "eq", "fun": balance, "jac": balance_jac}],
+                   options={"maxiter": 100, "ftol": 1e-14})
+    forces = np.clip(sol.x[n:], lo, hi)
+    eq = equilibrium_for_forces(forces, p, sol.x[:n])
     if not eq.converged:
-        raise ValueError("inverse_statics: no equilibrium inside the joint range for any force found "
-                         "(target unreachable with forces in the box)")
+        raise ValueError(f"inverse_statics: no equilibrium inside the joint range found for the target "
+                         f"({sol.message}); it is out of reach with tensions in [{lo:g}, {hi:g}] N")
     err, _ = _task(eq.alpha, p, alpha_target, head_target)
-    return HoldingSolution(sol.x, eq, err)
+    return HoldingSolution(forces, eq, err)
 
 
 def friction_band(forces, alpha, params: NeckParams, f_s=None, max_corners: int = 256, seed: int = 0) -> Equilibrium:

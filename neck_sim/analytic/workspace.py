@@ -82,5 +82,5 @@ def sample_workspace(params: NeckParams, samples: int = 1000, *, seed: int = 0, 
     head = np.concatenate([kin.head_position, kin.head_angle[:, None]], -1)
     lateral = np.where(feasible, head_stiffness(safe, K_m, p)[:, 0], np.nan)
     nan = np.where(ok, 0.0, np.nan)
-    return Workspace(forces, alpha, head + nan[:, None], feasible, feasible & (eig_f > 0), eig_f + nan,
+    return Workspace(forces, alpha + nan[:, None], head + nan[:, None], feasible, feasible & (eig_f > 0), eig_f + nan,
                      eig_m + nan, lateral)
