@@ -5,13 +5,14 @@ For each candidate routing of the same neck (geometry, springs, masses):
 * reachable workspace (:mod:`neck_sim.analytic.workspace`): sampled tensions in [f_min, f_max],
   equilibria kept when in range and stable with held motors; head position/angle cloud, its area,
   per-joint angle ranges;
-* stiffness: at the straight pose held with the least tensions >= t_min (smallest eigenvalue of
-  K_f and K_theta, head stiffness with held motors) and across the workspace;
+* stiffness: at the straight pose held with the least tensions above t_min, 25 N and 50 N
+  (co-contraction stiffens; smallest eigenvalue of K_f and K_theta, head lateral stiffness with
+  held motors) and across the workspace;
 * forces that hold typical shapes (:func:`typical_shapes`: a C curve, an S curve, a head reach),
   by inverse statics on the reachable set (the nearest reachable pose when the shape itself is
   not reachable, with its error);
 * the pose spread of motor friction: the band of equilibria with every motor's friction at +f_s
-  or -f_s (:func:`~neck_sim.analytic.statics.friction_band`).
+  or -f_s (:func:`~neck_sim.analytic.statics.friction_band`), those stable with held motors.
 
 The routings compared for a neck of N joints and m cables are :func:`routing_strategies` (three
 strategies, explained there) plus the routing of the parameter file.
@@ -126,15 +127,24 @@ def _deg(x):
     return np.degrees(np.asarray(x, dtype=float))
 
 
+PRETENSIONS = (None, 25.0, 50.0)   # N: the straight pose held with tensions >= t_min (None), 25 N, 50 N
+
+
 def _straight(p: NeckParams) -> dict:
-    sol = inverse_statics(p, alpha_target=np.zeros(p.n_joints), f_min=p.actuation.t_min)
-    eq = sol.equilibrium
-    K_m = motor_stiffness(eq.alpha, motor_angles_for(eq.alpha, sol.forces, p), p)
-    lam_m = np.linalg.eigvalsh(K_m)
-    return {"forces": sol.forces, "pose_error_deg": float(np.max(np.abs(_deg(sol.task_error)))),
+    """The straight pose held with the least tensions above each pretension of ``PRETENSIONS``."""
+    out = {}
+    for level in PRETENSIONS:
+        lo = p.actuation.t_min if level is None else level
+        sol = inverse_statics(p, alpha_target=np.zeros(p.n_joints), f_min=lo)
+        eq = sol.equilibrium
+        K_m = motor_stiffness(eq.alpha, motor_angles_for(eq.alpha, sol.forces, p), p)
+        lam_m = np.linalg.eigvalsh(K_m)
+        out[f"{lo:g}"] = {
+            "forces": sol.forces, "pose_error_deg": float(np.max(np.abs(_deg(sol.task_error)))),
             "min_eig_force": float(eq.eigenvalues[0]), "min_eig_motor": float(lam_m[0]),
             "max_eig_motor": float(lam_m[-1]), "force_control_stable": bool(eq.eigenvalues[0] > 0),
-            "head_stiffness_motor": head_stiffness(eq.alpha, K_m, p)}
+            "head_lateral_stiffness_motor": float(head_stiffness(eq.alpha, K_m, p)[0])}
+    return out
 
 
 def _shape(p: NeckParams, target: dict):
@@ -145,7 +155,10 @@ def _shape(p: NeckParams, target: dict):
     eq = sol.equilibrium
     K_m = motor_stiffness(eq.alpha, motor_angles_for(eq.alpha, sol.forces, p), p)
     band = friction_band(sol.forces, eq.alpha, p)
-    ok = band.converged
+    # a stopped motor is held by its friction: only corners stable with held motors are rest poses
+    safe = np.where(band.converged[:, None], band.alpha, 0.0)
+    held = np.linalg.eigvalsh(motor_stiffness(safe, motor_angles_for(safe, band.tension, p), p))[:, 0] > 0
+    ok = band.converged & held
     kin = forward_kinematics(eq.alpha, p)
     out = {"reachable": True, "forces": sol.forces, "max_force": float(sol.forces.max()),
            "alpha_deg": _deg(eq.alpha), "head": np.r_[kin.head_position, _deg(kin.head_angle)],

@@ -104,7 +104,8 @@ def _forces_figure(results, path):
             info = r.summary["shapes"][name]
             if info.get("reachable"):
                 ax.bar(np.arange(m) + k * width, info["forces"], width, label=name)
-        ax.bar(np.arange(m) + len(names) * width, r.summary["straight"]["forces"], width, label="straight", color="0.6")
+        straight = next(iter(r.summary["straight"].values()))
+        ax.bar(np.arange(m) + len(names) * width, straight["forces"], width, label="straight", color="0.6")
         ax.set_xticks(np.arange(m) + 0.4, [str(j + 1) for j in range(m)])
         ax.set_xlabel("cable")
         ax.set_title(r.strategy.name)
@@ -145,16 +146,24 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
             lines.append(f"  - cable {j + 1}: {c['side']}, passes [{passes}], ends at joint {c['ends_at']}")
     lines += ["", "## Workspace and stiffness", "",
               "| routing | feasible | force-control stable | head area (cm^2) | head angle (deg) | "
-              "straight: min eig K_f / K_theta (N m/rad) | straight head stiffness (N/m) | workspace head stiffness "
-              "median / 5 % (N/m) |", "|---|---|---|---|---|---|---|---|"]
+              "workspace head stiffness median / 5 % (N/m) |", "|---|---|---|---|---|---|"]
     for r in results:
-        w, s = r.summary["workspace"], r.summary["straight"]
+        w = r.summary["workspace"]
         ang = w["head_angle_range_deg"]
         lines.append(
             f"| {r.strategy.name} | {100 * w['feasible_fraction']:.1f} % | {100 * w['force_control_stable_fraction']:.1f} % "
             f"| {w['head_area_cm2']:.0f} | {'-' if ang is None else f'{ang[0]:.0f} .. {ang[1]:.0f}'} "
-            f"| {s['min_eig_force']:.2f} / {s['min_eig_motor']:.2f} | {s['head_stiffness_motor'][0]:.1f} "
             f"| {_fmt(w['lateral_stiffness_median'])} / {_fmt(w['lateral_stiffness_p5'])} |")
+    lines += ["", "Straight pose held with the least tensions above a pretension: smallest eigenvalue of K_f "
+              "(force control) and K_theta (held motors, elastic cables), N m/rad, and the head's lateral "
+              "stiffness with held motors (N/m; negative: unstable).", "",
+              "| routing | pretension (N) | tensions (N) | min eig K_f | min eig K_theta | head stiffness (N/m) |",
+              "|---|---|---|---|---|---|"]
+    for r in results:
+        for level, s in r.summary["straight"].items():
+            tensions = ", ".join(f"{f:.1f}" for f in s["forces"])
+            lines.append(f"| {r.strategy.name} | {level} | {tensions} | {s['min_eig_force']:.2f} "
+                         f"| {s['min_eig_motor']:.2f} | {s['head_lateral_stiffness_motor']:.1f} |")
     lines += ["", "A negative smallest eigenvalue of K_f means the pose cannot be held by force control alone "
               "(gravity wins); K_theta adds the elastic cables of held motors.", "",
               "## Holding forces and friction spread", "",
@@ -172,7 +181,8 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
                          f"| {_fmt(info.get('friction_head_spread_mm'), '.0f')} "
                          f"| {info['friction_corners_in_range']}/{info['friction_corners']} |")
     lines += ["", "Friction band: the equilibria with each motor's dry friction (f_s) adding to or subtracting from "
-              "its tension; corners outside the joint range have no equilibrium there.", "",
+              "its tension, kept where they are stable with the motors held (a stopped motor is held by its "
+              "friction); the other corners have no stable rest pose nearby.", "",
               "## Figures", ""]
     lines += [f"![{f[:-4]}]({f})" for f in FIGURES]
     return "\n".join(lines) + "\n"

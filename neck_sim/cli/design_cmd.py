@@ -63,6 +63,8 @@ def run(args) -> int:
     for r in results:
         w = r.summary["workspace"]
         print(f"{r.strategy.name:>10}: feasible {100 * w['feasible_fraction']:5.1f} %, head area "
-              f"{w['head_area_cm2']:6.0f} cm^2, straight min eig K_theta {r.summary['straight']['min_eig_motor']:.2f} N m/rad")
+              f"{w['head_area_cm2']:6.0f} cm^2, straight min eig K_theta "
+              + ", ".join(f"{s['min_eig_motor']:.2f}" for s in r.summary["straight"].values())
+              + " N m/rad at pretensions " + ", ".join(r.summary["straight"]) + " N")
     print(f"report: {os.path.join(out, 'report.md')}")
     return 0
