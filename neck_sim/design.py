@@ -170,8 +170,9 @@ def _shape(p: NeckParams, target: dict):
     else:
         out.update(head_error_mm=float(1e3 * np.linalg.norm(sol.task_error)))
     if ok.any():
-        bk = forward_kinematics(band.alpha[ok], p)
-        out.update(friction_joint_spread_deg=float(_deg(np.ptp(band.alpha[ok], 0)).max()),
+        poses = np.concatenate([eq.alpha[None], band.alpha[ok]])        # the band includes the nominal pose
+        bk = forward_kinematics(poses, p)
+        out.update(friction_joint_spread_deg=float(_deg(np.ptp(poses, 0)).max()),
                    friction_head_spread_mm=float(1e3 * np.linalg.norm(bk.head_position - kin.head_position, axis=-1).max()),
                    friction_head_angle_spread_deg=float(_deg(np.ptp(bk.head_angle))))
     return out, sol, band.alpha[ok]
