@@ -31,17 +31,31 @@ import numpy as np
 from controllers.computed_torque import ControlStep
 from neck_sim.analytic.cables import cable_lengths, transmission_matrix
 from neck_sim.analytic.dynamics import gravity_spring_torque, motor_friction
-from neck_sim.analytic.statics import equilibrium_for_forces, equilibrium_for_motor_angles, motor_angles_for
+from neck_sim.analytic.statics import (equilibrium_for_forces, equilibrium_for_motor_angles, motor_angles_for,
+                                       motor_stiffness)
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import TrajectorySample
 
-__all__ = ["ReachablePath", "UnderactuatedReference", "UnderactuatedController", "holding_tensions"]
+__all__ = ["ReachablePath", "ReachableSample", "UnderactuatedReference", "UnderactuatedController",
+           "holding_tensions"]
+
+
+class ReachableSample(NamedTuple):
+    """A :class:`~neck_sim.trajectory.TrajectorySample` on the reachable set with the tensions
+    that hold it, t.shape + (N,) rad, rad/s, rad/s^2 and t.shape + (m,) N."""
+
+    alpha: np.ndarray
+    alpha_dot: np.ndarray
+    alpha_ddot: np.ndarray
+    tension: np.ndarray
 
 
 def holding_tensions(alpha, params: NeckParams, t_min: float = 0.0) -> np.ndarray:
     """Tensions (..., m) N with Z t = g at poses ``alpha`` (..., N): Z^+ g, least squares.
 
-    On the reachable set of an m <= N neck this is the unique holding tension.  With a null space
+    On the reachable set of an m <= N neck with a well-conditioned Z this is the unique holding
+    tension; antagonist pairs make Z nearly rank-deficient near symmetric poses (their
+    co-contraction), so a path should carry its own tensions (:class:`ReachableSample`).  With a null space
     (m = N + 1: co-contraction) the positive null vector is added until the smallest tension is
     ``t_min``.
     """
@@ -93,6 +107,14 @@ class ReachablePath:
                 raise ValueError(f"{name}: no equilibrium in the joint range at t = {t[k]:.2f} s "
                                  f"(tensions {np.round(f[k], 1).tolist()} N): the path leaves the reachable set")
             a = alpha[k] = eq.alpha
+        # a position-controlled neck holds only equilibria that are stable with the motors held
+        K = motor_stiffness(alpha, motor_angles_for(alpha, f, params), params)
+        unstable = np.linalg.eigvalsh(K)[:, 0] <= 0
+        if unstable.any():
+            k = int(np.argmax(unstable))
+            raise ValueError(f"{name}: the equilibrium at t = {t[k]:.2f} s (tensions {np.round(f[k], 1).tolist()} N) "
+                             "is unstable even with the motors held (K_theta not positive definite): raise the "
+                             "pretension or choose other waypoints")
         self.grid_t, self.grid_alpha = t, alpha
         self._spline = CubicSpline(t, alpha, axis=0, bc_type="clamped")
 
@@ -109,10 +131,10 @@ class ReachablePath:
     def n_joints(self) -> int:
         return self.params.n_joints
 
-    def sample(self, t) -> TrajectorySample:
-        """Reference poses, velocities, accelerations, t.shape + (N,)."""
+    def sample(self, t) -> ReachableSample:
+        """Reference poses, velocities, accelerations t.shape + (N,) and holding tensions (m,)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        return TrajectorySample(self._spline(t), self._spline(t, 1), self._spline(t, 2))
+        return ReachableSample(self._spline(t), self._spline(t, 1), self._spline(t, 2), self.forces_at(t))
 
     def check_workspace(self, params: NeckParams) -> None:
         if params.n_joints != self.n_joints:
@@ -163,11 +185,13 @@ class UnderactuatedController:
         self.estimate_every = int(estimate_every)
         self.reset()
 
-    def motor_reference(self, sample: TrajectorySample) -> UnderactuatedReference:
-        """Holding tensions, motor angles and speeds for reference poses (batched)."""
+    def motor_reference(self, sample: ReachableSample | TrajectorySample) -> UnderactuatedReference:
+        """Holding tensions (the sample's own, else :func:`holding_tensions`), motor angles and
+        speeds for reference poses (batched)."""
         p = self.params
         a, ad = np.asarray(sample.alpha, dtype=float), np.asarray(sample.alpha_dot, dtype=float)
-        t = np.maximum(holding_tensions(a, p, p.actuation.t_min), 0.0)
+        t = getattr(sample, "tension", None)
+        t = np.maximum(holding_tensions(a, p, p.actuation.t_min) if t is None else np.asarray(t, dtype=float), 0.0)
         theta = motor_angles_for(a, t, p)
         # rigid part of eq (21): the elongation changes little along a path
         theta_dot = np.einsum("...ij,...i->...j", transmission_matrix(a, p), ad) / self.ratio
