@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "diagnose": "diagnose_cmd",
     "effects": "effects_cmd",
     "render": "render_cmd",
+    "design": "design_cmd",
 }
 
 
