@@ -9,8 +9,8 @@ import numpy as np
 
 from identification.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
-from identification.diagnosis.search import search_pretension, search_shape, shape_grid
-from identification.diagnosis.statistics import block_scores, clearly_nonzero, score
+from identification.diagnosis.search import search_shape, shape_grid
+from identification.diagnosis.statistics import block_scores, score
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,23 +47,12 @@ class CandidateScore:
                 "significant": self.significant, "shape": dict(self.term.shape), "note": self.note}
 
 
-#: Magnitude parameters whose physical sign is fixed (a friction cannot push, a stiffness is > 0).
-SIGNED = {"dry_friction": "f_s", "viscous_friction": "c_v", "stribeck_friction": "df", "pulley_friction": "mu",
-           "cable_elasticity": "k", "tension_stiffening": "lambda", "payload": "payload"}
-
-
 def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
-    """False when a clearly non-zero magnitude of ``term`` (|z| >= 4, at least 25 % of the largest)
-    has the unphysical sign: the candidate then only reshapes another effect."""
-    sym = SIGNED.get(term.name)
-    if sym is None or not fit.has(sym):
-        return True, ""
-    v = fit.group(sym)
-    bad = clearly_nonzero(v, fit.group_sigma(sym)) & (v < 0)
-    if bad.any():
-        idx = ", ".join(str(i + 1) for i in np.nonzero(bad)[0])
-        return False, f"fitted {sym} < 0 on {'cable' if v.size > 1 else 'the head'} {idx}: not a {term.name}"
-    return True, ""
+    """False when a clearly non-zero magnitude of ``term`` has the unphysical sign (the effect's
+    ``sign_violation``): the candidate then only reshapes another effect."""
+    symbols = [col.symbol for col in term.effect.columns if fit.has(col.symbol)]
+    why = term.effect.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    return not why, why
 
 
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
@@ -83,7 +72,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
                 cache[term.shape] = None
         return cache[term.shape]
 
-    best = search_pretension(ctx, trial) if name == "pretension" else search_shape(name, trial)
+    best = search_shape(ctx, name, trial)
     if best is None:
         return CandidateScore(Term(name, shape_grid(name)[0]), None, 0, math.nan, math.nan, 0.0, 0.0, {}, 1.0, 1.0,
                               False, False, "not identifiable: " + (notes[0] if notes else "no fit"))
