@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, check_alpha
+from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, check_alpha, check_pose
 from neck_sim.params import NeckParams
 
 __all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "CableKinematics",
@@ -111,27 +111,28 @@ def _assemble_z(seg: _Segments, n: int, order: int) -> np.ndarray:
     return out
 
 
-def cable_lengths(alpha, params: NeckParams) -> np.ndarray:
+def cable_lengths(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for N joints), shape (..., N+1), m."""
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
     return _assemble_lengths(_segments(a, *_geom(params), orders=(0,)), n) - zero
 
 
-def transmission_matrix(alpha, params: NeckParams) -> np.ndarray:
+def transmission_matrix(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, N+1), m."""
     n = params.n_joints
-    return _assemble_z(_segments(check_alpha(alpha, n), *_geom(params), orders=(1,)), n, 1)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    return _assemble_z(_segments(a, *_geom(params), orders=(1,)), n, 1)
 
 
-def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
+def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, N+1), m/s.
 
     Column j of Z depends on alpha_i only through row i, so Zdot_ij = (dZ_ij/dalpha_i) alpha_dot_i.
     """
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     return _assemble_z(_segments(a, *_geom(params), orders=(2,)), n, 2) * ad[..., :, None]
 
@@ -142,10 +143,10 @@ class CableKinematics(NamedTuple):
     Zdot: np.ndarray     # (..., N, N+1), m/s
 
 
-def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
+def cable_kinematics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> CableKinematics:
     """Lengths, Z and Zdot in one pass (what a dynamics step needs)."""
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     seg = _segments(a, *_geom(params))
     zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
@@ -153,14 +154,15 @@ def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
                            _assemble_z(seg, n, 2) * ad[..., :, None])
 
 
-def elongation(theta, alpha, params: NeckParams) -> np.ndarray:
+def elongation(theta, alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., N+1), m."""
     a = params.actuation
-    return cable_lengths(alpha, params) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
+    return (cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
+            + (a.r_d / a.R) * np.asarray(theta, dtype=float))
 
 
-def motor_angles_rigid(alpha, params: NeckParams, elongation=None) -> np.ndarray:
+def motor_angles_rigid(alpha, params: NeckParams, elongation=None, *, allow_outside_range: bool = False) -> np.ndarray:
     """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., N+1), rad."""
     a = params.actuation
     x = 0.0 if elongation is None else np.asarray(elongation, dtype=float)
-    return (a.R / a.r_d) * (x - cable_lengths(alpha, params))
+    return (a.R / a.r_d) * (x - cable_lengths(alpha, params, allow_outside_range=allow_outside_range))

@@ -153,7 +153,7 @@ def visualization_messages(log_times, alphas, params: NeckParams, source: str, t
     The forward kinematics of all K poses is computed in one batch.
     """
     alphas = np.asarray(alphas, dtype=float).reshape(len(log_times), params.n_joints)
-    kin = forward_kinematics(alphas, params)
+    kin = forward_kinematics(alphas, params, allow_outside_range=True)   # a diverged estimate is still drawn
     for k, ns in enumerate(log_times):
         if tf:
             yield TF_TOPIC, ns, frame_transforms(ns, kin.frame_origin[k], kin.frame_angle[k])
