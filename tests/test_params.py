@@ -102,12 +102,14 @@ def test_t_min_above_f_max_is_refused():
 
 def test_one_joint_limit_in_the_parameters(tmp_path):
     from neck_sim.cli import main
-    from neck_sim.plant import MAX_CABLES
+    from neck_sim.native import MAX_CABLES
 
-    assert P.default_params(P.MAX_JOINTS).n_joints == P.MAX_JOINTS
-    assert MAX_CABLES == P.MAX_JOINTS + 1
-    with pytest.raises(P.ParameterError, match=rf"geometry\.n_joints: must be an integer between 1 and {P.MAX_JOINTS}"):
-        P.default_params(P.MAX_JOINTS + 1)
+    assert P.MAX_CABLES == MAX_CABLES                   # the compiled callback's arrays
+    assert P.default_params(P.MAX_CABLES - 1).n_cables == P.MAX_CABLES
+    with pytest.raises(P.ParameterError, match=rf"routing: {P.MAX_CABLES + 1} cables .* at most {P.MAX_CABLES}"):
+        P.default_params(P.MAX_CABLES)
+    with pytest.raises(P.ParameterError, match=rf"geometry\.n_joints: must be an integer between 1 and {P.MAX_CABLES}"):
+        P.default_params(40)
     out = tmp_path / "p40.toml"
     assert main(["params", "--n-joints", "40", "-o", str(out)]) == 2
     assert not out.exists()

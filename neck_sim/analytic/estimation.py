@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
+from neck_sim.analytic.dynamics import static_elongation
 from neck_sim.analytic.geometry import check_cables, check_pose
-from neck_sim.params import NeckParams
+from neck_sim.params import SEG_RIGHT_END, SEG_RIGHT_STRUT, NeckParams
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "cable_stretch_at_f_max",
            "estimate_alpha_pinv"]
@@ -25,8 +26,8 @@ class UnreachableError(ValueError):
 def _right_segments(alpha: np.ndarray, params: NeckParams):
     """Case (b) value and derivative and case (d) value for joint angles of any shape."""
     g = params.geometry
-    seg = _segments(alpha, g.b, g.L, g.r, orders=(0, 1))
-    return seg.b[0], seg.b[1], seg.d[0]
+    seg = _segments(alpha[..., None], g.b, g.L, g.r, orders=(0, 1), left_strut=False)
+    return (seg[0][..., SEG_RIGHT_END, 0], seg[1][..., SEG_RIGHT_END, 0], seg[0][..., SEG_RIGHT_STRUT, 0])
 
 
 def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol: float = 1e-13,
@@ -41,6 +42,9 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
     """
     n = params.n_joints
     act = params.actuation
+    if not params.routing.is_paper_kind(n):
+        raise ValueError("estimate_alpha_triangular: eq (33) needs the paper's routing (right cable j strut-routed "
+                         "below joint j and attached at D_j, plus one long left cable); this neck's routing differs")
     th = check_cables(theta, n + 1, "theta")
     x = np.zeros_like(th) if elongation is None else check_cables(elongation, n + 1, "elongation")
     th, x = np.broadcast_arrays(th, x)
@@ -83,51 +87,48 @@ def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None, *,
                    allow_outside_range: bool = False) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
-    Z has full row rank, so (Z^T)^+ = (Z Z^T)^{-1} Z.
+    Needs at least as many cables as joints (m >= N), so that Z has full row rank and
+    (Z^T)^+ = (Z Z^T)^{-1} Z: with fewer cables the motor angles do not determine the pose.
     """
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
+    if m < n:
+        raise ValueError(f"pinv_increment: {m} cables cannot determine {n} joint angles (eq 35 needs m >= N)")
     act = params.actuation
     a = check_pose(alpha_hat, params, "alpha_hat", allow_outside_range)
-    dth = check_cables(d_theta, n + 1, "d_theta")
+    dth = check_cables(d_theta, m, "d_theta")
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
-        rhs = rhs - check_cables(d_elongation, n + 1, "d_elongation")
+        rhs = rhs - check_cables(d_elongation, m, "d_elongation")
     Z = transmission_matrix(a, params, allow_outside_range=True)
     zz = Z @ np.swapaxes(Z, -1, -2)
     return np.linalg.solve(zz, np.einsum("...ij,...j->...i", Z, rhs)[..., None])[..., 0]
 
 
 def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:
-    """Static elongation of each cable at the force limit f_max by eq (54), (N+1,) m.
-
-    Inverts t = (k + lambda t) x, continued with its tangent stiffness above ``cables.t_cap`` as in
-    :func:`neck_sim.analytic.cable_tension`.
-    """
+    """Static elongation of each cable at the force limit f_max by eq (54), (m,) m."""
     cab = params.cables
-    k, lam, f, cap = np.asarray(cab.k), np.asarray(cab.lam), params.actuation.f_max, cab.t_cap
-    x_cap = cap / (k + lam * cap)
-    return np.where(f <= cap, f / (k + lam * f), x_cap + (f - cap) * (1.0 - lam * x_cap) ** 2 / k)
+    return static_elongation(np.full(params.n_cables, params.actuation.f_max), cab.k, cab.lam)
 
 
 def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None, *,
                         tol: float | None = None) -> np.ndarray:
-    """alpha_hat over a time series by eq (35) corrected, all N+1 cables, shape (..., T, N), rad.
+    """alpha_hat over a time series by eq (35) corrected, all m cables, shape (..., T, N), rad.
 
-    ``theta`` (..., T, N+1); ``elongation`` (..., T, N+1) or None; ``alpha0`` (..., N) the pose at
+    ``theta`` (..., T, m); ``elongation`` (..., T, m) or None; ``alpha0`` (..., N) the pose at
     the first sample (default straight).  Vectorised over the leading batch axes, sequential in T.
 
-    N+1 cables over-determine N joints: after the fit, the cable lengths of alpha_hat must match
-    the ones the motors allow, l_c - l_c0 = x_c - (r_d/R) theta (both taken from the first sample).
-    Motor angles whose mismatch exceeds ``tol`` (m; default the norm of
+    More cables than joints over-determine the pose: after the fit, the cable lengths of
+    alpha_hat must match the ones the motors allow, l_c - l_c0 = x_c - (r_d/R) theta (both taken
+    from the first sample).  Motor angles whose mismatch exceeds ``tol`` (m; default the norm of
     :func:`cable_stretch_at_f_max`, the most that taut cables within f_max can explain) are
     reached by no pose, nor are estimates leaving |alpha| <= alpha_max: both raise
     :class:`UnreachableError` naming the first offending sample.
     """
-    n = params.n_joints
-    th = check_cables(theta, n + 1, "theta")
+    n, m = params.n_joints, params.n_cables
+    th = check_cables(theta, m, "theta")
     if th.ndim < 2:
-        raise ValueError(f"theta: expected a time series of shape (..., T, {n + 1}), got {th.shape}")
-    x = None if elongation is None else check_cables(elongation, n + 1, "elongation")
+        raise ValueError(f"theta: expected a time series of shape (..., T, {m}), got {th.shape}")
+    x = None if elongation is None else check_cables(elongation, m, "elongation")
     if x is not None and x.shape[-2] != th.shape[-2]:
         raise ValueError(f"elongation: {x.shape[-2]} samples but theta has {th.shape[-2]}")
     a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_pose(alpha0, params, "alpha0")
@@ -143,7 +144,7 @@ def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None,
 
 def _check_reachable(alpha_hat, theta, elongation, params: NeckParams, tol: float, iterations: int = 20) -> None:
     """Raise UnreachableError at the first sample where alpha_hat leaves the joint range or where no
-    pose's N+1 cable lengths come within ``tol`` (m) of the ones the motors allow.
+    pose's m cable lengths come within ``tol`` (m) of the ones the motors allow.
 
     The distance is the least-squares one: samples over ``tol`` at alpha_hat are refined by
     Gauss-Newton (eq 35's own step, with the length mismatch as right-hand side) before judging,
