@@ -31,11 +31,11 @@ def _candidates(params, args):
     if args.no_strategies:
         return [given]
     proposed = routing_strategies(params, args.cables)
-    cases = getattr(params.routing, "segment_cases", None)
-    if cases is not None:
-        mine = cases(params.n_joints).tolist()
-        same = [s for s in proposed if s.params.routing.segment_cases(params.n_joints).tolist() == mine]
-        if same:                                    # the file holds one of the strategies: name it
+    mine = sorted(params.routing.segment_cases(params.n_joints).tolist())
+    for k, s in enumerate(proposed):
+        if sorted(s.params.routing.segment_cases(params.n_joints).tolist()) == mine:
+            # the file holds this strategy (up to cable order): evaluate the file's own constants
+            proposed[k] = Strategy(s.name, s.description + " (the parameter file's routing)", params)
             return proposed
     return [given] + proposed
 
