@@ -30,7 +30,8 @@ from neck_sim.atomic import atomic_write_bytes
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
     "NeckParams", "ParameterError", "default_params", "describe", "load", "save",
-    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing",
+    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing", "neck10x4_routing",
+    "mirrored_paper_routing", "EXAMPLES", "example_params",
 ]
 
 
@@ -484,6 +485,59 @@ def paper_routing(n_joints: int = 3) -> Routing:
     right = [CableRoute("right", ("strut",) * j, j + 1) for j in range(n_joints)]
     return Routing(tuple(right + [CableRoute("left", ("side",) * (n_joints - 1), n_joints)]))
 
+
+
+def _route(side: str, strut: int, side_routed: int) -> CableRoute:
+    """A cable strut-routed on the first ``strut`` joints, side-routed on the next
+    ``side_routed`` and attached at the joint after them."""
+    return CableRoute(side, ("strut",) * strut + ("side",) * side_routed, strut + side_routed + 1)
+
+
+def neck10x4_routing() -> Routing:
+    """Ten X-joints, four cables: two antagonistic pairs, like a bird neck's lower and upper
+    muscle groups (README "Designing a neck").
+
+    c1 (right) and c2 (left) run up their sides over joints 1-4 and are attached at joint 5:
+    they bend the lower neck.  c3 (right) and c4 (left) cross joints 1-5 strut-routed (along the
+    diagonals, where their moment arm is small: |Z| <= 1.3 mm against about 25 mm on a side),
+    then run up their sides over joints 6-9 and are attached at the head (joint 10): they bend
+    the upper neck.  Same-side pulls make C curves, crossed pulls S curves.
+    """
+    return Routing((_route("right", 0, 4), _route("left", 0, 4), _route("right", 5, 4), _route("left", 5, 4)))
+
+
+def mirrored_paper_routing(n_joints: int = 3) -> Routing:
+    """The paper's routing mirrored: N left cables (cable j strut-routed along the diagonals A->D
+    below joint j, attached at C_j) and one long right cable side-routed to D_N."""
+    left = [CableRoute("left", ("strut",) * j, j + 1) for j in range(n_joints)]
+    return Routing(tuple(left + [CableRoute("right", ("side",) * (n_joints - 1), n_joints)]))
+
+
+def mixed4_routing() -> Routing:
+    """Four joints, four cables using every segment kind (a test case, not a design): a left cable
+    alternating strut and side, a right cable alternating side and strut, a short right cable
+    and a left cable attached at joint 1."""
+    return Routing((CableRoute("left", ("strut", "side", "strut"), 4),
+                    CableRoute("right", ("side", "strut", "side"), 4),
+                    CableRoute("right", ("side",), 2), CableRoute("left", (), 1)))
+
+
+EXAMPLES = {
+    "paper": (3, lambda: paper_routing(3), "the paper's prototype: 3 X-joints, 3 right cables + 1 long left cable"),
+    "neck10x4": (10, neck10x4_routing, "10 X-joints, 4 cables: lower and upper antagonistic pairs"),
+    "mirrored3": (3, lambda: mirrored_paper_routing(3),
+                  "the paper's neck with its routing mirrored (3 left cables + 1 long right cable)"),
+    "mixed4": (4, mixed4_routing, "4 X-joints, 4 cables using every segment kind (a test case)"),
+}
+"""Example necks: name -> (n_joints, routing factory, description)."""
+
+
+def example_params(name: str) -> "NeckParams":
+    """Default parameters of an example neck (:data:`EXAMPLES`)."""
+    if name not in EXAMPLES:
+        raise ParameterError(f"example {name!r}: unknown (known: {', '.join(EXAMPLES)})")
+    n, routing, _ = EXAMPLES[name]
+    return default_params(n, routing())
 
 _GROUPS = {"geometry": Geometry, "actuation": Actuation, "springs": Springs, "inertia": Inertia,
            "friction": Friction, "cables": Cables, "control": Control, "sensors": Sensors,

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import SHAPE_GRIDS, Fit, Term
+from identification.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
-from identification.diagnosis.search import REFINE, golden_section, search_pretension, shape_grid
+from identification.diagnosis.search import golden_section, refined_shape, search_per_cable_offset, shape_grid
+from neck_sim import effects as effect_registry
 from identification.diagnosis.statistics import block_scores, score
 
 
@@ -43,24 +44,12 @@ class CandidateScore:
                 "significant": self.significant, "shape": dict(self.term.shape), "note": self.note}
 
 
-#: Magnitude parameters whose physical sign is fixed (a friction cannot push, a stiffness is > 0).
-SIGNED = {"dry_friction": "f_s", "viscous_friction": "c_v", "stribeck_friction": "df", "pulley_friction": "mu",
-           "cable_elasticity": "k", "tension_stiffening": "lambda", "payload": "payload"}
-
-
 def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
-    """False when a clearly non-zero magnitude of ``term`` (|z| >= 4, at least 25 % of the largest)
-    has the unphysical sign: the candidate then only reshapes another effect."""
-    sym = SIGNED.get(term.name)
-    if sym is None or not fit.has(sym):
-        return True, ""
-    v, s = fit.group(sym), fit.group_sigma(sym)
-    strong = (np.abs(v) >= 4 * s) & (np.abs(v) >= 0.25 * np.abs(v).max())
-    bad = strong & (v < 0)
-    if bad.any():
-        idx = ", ".join(str(i + 1) for i in np.nonzero(bad)[0])
-        return False, f"fitted {sym} < 0 on {'cable' if v.size > 1 else 'the head'} {idx}: not a {term.name}"
-    return True, ""
+    """False when a clearly non-zero magnitude of ``term`` has the unphysical sign (the effect's
+    ``sign_violation``): the candidate then only reshapes another effect."""
+    symbols = [col.symbol for col in term.effect.columns if fit.has(col.symbol)]
+    why = term.effect.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    return not why, why
 
 
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
@@ -80,16 +69,19 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
                 cache[term.shape] = None
         return cache[term.shape]
 
-    if name == "pretension":
-        best = search_pretension(ctx, trial)
+    effect = effect_registry.get(name)
+    per_cable = next((sh for sh in effect.shapes if sh.per_cable), None)
+    if per_cable is not None:
+        best = search_per_cable_offset(ctx, trial, name, per_cable)
     else:
         for shape in shape_grid(name):
             trial(Term(name, shape))
         done = [v for v in cache.values() if v is not None]
         best = min(done, key=_value) if done else None
-        if name in REFINE and best is not None:
-            key, log_scale = REFINE[name]
-            grid = sorted(SHAPE_GRIDS[name][key])
+        refine = refined_shape(name)
+        if refine is not None and best is not None:
+            key, log_scale = refine.name, refine.refine == "log"
+            grid = sorted(refine.grid)
             i = grid.index(best[1].get(key))
             lo = grid[i - 1] if i > 0 else (0.0 if not log_scale else grid[0] / 2)
             hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]

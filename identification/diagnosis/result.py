@@ -15,33 +15,43 @@ from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis.statistics import score
 from neck_sim.atomic import atomic_write_json
+from neck_sim.effects import clearly_nonzero
 from neck_sim.atomic import jsonable as _jsonable
 from neck_sim.params import NeckParams, to_dict
 
 
-MAGNITUDE = {"dry_friction": "f_s", "viscous_friction": "c_v", "stribeck_friction": "df", "pulley_friction": "mu",
-              "cable_elasticity": "k", "tension_stiffening": "lambda"}
+def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
+    """1-based items (``per`` = "cable" or "joint") whose magnitude (the effect's first column) is
+    clearly non-zero; None when that column is not one per such item."""
+    cols = term.effect.columns
+    if not cols or cols[0].per != per or not fit.has(cols[0].symbol):
+        return None
+    keep = clearly_nonzero(fit.group(cols[0].symbol), fit.group_sigma(cols[0].symbol))
+    return [int(i) + 1 for i in np.nonzero(keep)[0]]
+
+
+def _per_cable_keys(term: Term) -> dict[str, tuple]:
+    """Shape key -> (Shape, 1-based cable) for the per-cable shapes of ``term`` (rest elongations)."""
+    out = {}
+    for sh in term.effect.shapes:
+        if sh.per_cable:
+            out.update({k: (sh, int(k[len(sh.name) + 1:])) for k, _ in term.shape if k.startswith(sh.name + "_")})
+    return out
 
 
 def cables_of(fit: Fit, term: Term) -> list[int] | None:
-    """1-based cables the effect concerns: per-cable magnitudes clearly non-zero (|z| >= 4 and at
-    least 25 % of the largest), the cables of a pretension; None for effects not per cable."""
-    if term.name == "pretension":
-        return sorted(int(k[3:]) for k, _ in term.shape if k.startswith("x0_"))
-    sym = MAGNITUDE.get(term.name)
-    if sym is None or not fit.has(sym):
-        return None
-    v, s = fit.group(sym), fit.group_sigma(sym)
-    keep = (np.abs(v) >= 4 * s) & (np.abs(v) >= 0.25 * np.abs(v).max())
-    return [int(i) + 1 for i in np.nonzero(keep)[0]]
+    """1-based cables the effect concerns: per-cable magnitudes clearly non-zero
+    (:func:`neck_sim.effects.clearly_nonzero`), the cables of a per-cable shape (pretension); None
+    for effects not per cable."""
+    keys = _per_cable_keys(term)
+    if keys:
+        return sorted(cable for _, cable in keys.values())
+    return _located(fit, term, "cable")
 
 
 def joints_of(fit: Fit, term: Term) -> list[int] | None:
-    if term.name != "spring_error" or not fit.has("dk"):
-        return None
-    v, s = fit.group("dk"), fit.group_sigma("dk")
-    keep = (np.abs(v) >= 4 * s) & (np.abs(v) >= 0.25 * np.abs(v).max())
-    return [int(i) + 1 for i in np.nonzero(keep)[0]]
+    """1-based joints of an effect fitted per joint (spring errors), as :func:`cables_of`."""
+    return _located(fit, term, "joint")
 
 
 def _profile_sigma(ctx: StepContext, term: Term, key: str, h: float, fit_score: float) -> float | None:
@@ -66,23 +76,22 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict:
     """Fitted parameters of the candidate's term: name -> {value, sigma, unit}; shape parameters
     from the grid search have sigma None, except the delay and the rest elongations (profile)."""
     fit, term = cand.fit, cand.term
-    sym = {"dry_friction": ("f_s",), "viscous_friction": ("c_v",), "stribeck_friction": ("df",),
-           "pulley_friction": ("mu",), "cable_elasticity": ("k", "c_a"), "tension_stiffening": ("lambda",),
-           "payload": ("payload",), "spring_error": ("dk",)}.get(term.name, ())
+    sym = {col.symbol for col in term.effect.columns}
     out = {}
     for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma):
         if n.split("(")[0] in sym:
             out[n] = {"value": float(v), "sigma": float(s), "unit": u}
+    per_cable = _per_cable_keys(term)
+    shapes = {sh.name: sh for sh in term.effect.shapes}
     for k, v in term.shape:
-        if k == "delay":
-            out["delay"] = {"value": float(v), "sigma": _profile_sigma(ctx, term, k, 5e-4, cand.train_score),
-                            "unit": "s"}
-        elif k.startswith("x0_"):
-            out[f"x0({k[3:]})"] = {"value": float(v), "sigma": _profile_sigma(ctx, term, k, 1e-4, cand.train_score),
-                                   "unit": "m"}
+        sh, name = (per_cable[k][0], f"{per_cable[k][0].name}({per_cable[k][1]})") if k in per_cable \
+            else (shapes.get(k), k)
+        if sh is not None and sh.profile_step is not None:
+            out[name] = {"value": float(v), "sigma": _profile_sigma(ctx, term, k, sh.profile_step, cand.train_score),
+                         "unit": sh.unit}
         else:
-            unit = {"c_s": "s/rad", "c": "s/rad", "speed": "rad/s", "smoothing": "rad/s"}.get(k, "")
-            out[k] = {"value": float(v), "sigma": None, "unit": unit, "note": "shape parameter, grid search"}
+            out[name] = {"value": float(v), "sigma": None, "unit": sh.unit if sh else "",
+                         "note": "shape parameter, grid search"}
     return out
 
 

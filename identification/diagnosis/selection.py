@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import REQUIRES, FitState, MeasuredData, ModelSpec
+from identification.candidates import FitState, MeasuredData, ModelSpec
+from neck_sim import effects as effect_registry
 from identification.diagnosis.candidate import CandidateScore, evaluate_candidate
 from identification.diagnosis.fitting import Evaluated, StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
@@ -77,7 +78,8 @@ def run_step(data: MeasuredData, model: ModelSpec, split: Split, settings: Diagn
     fit, scales = fit_baseline(data, model, split, settings, state)
     ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
     ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales)
-    names = [n for n in settings.candidates if not model.has(n) and (REQUIRES.get(n) is None or model.has(REQUIRES[n]))]
+    names = [n for n in settings.candidates
+             if not model.has(n) and all(model.has(r) for r in effect_registry.get(n).requires)]
     cands = []
     for name in tqdm(names, desc=desc, unit="effect", disable=not progress, leave=False):
         cands.append(evaluate_candidate(ctx, name))
