@@ -86,7 +86,7 @@ def test_strategies_are_what_they_claim():
 @needs_routing
 def test_design_command_writes_report_and_results(tmp_path, capsys):
     out = tmp_path / "report"
-    assert main(["design", "--n-joints", "4", "--samples", "40", "-o", str(out)]) == 0
+    assert main(["design", "--n-joints", "4", "--samples", "20", "-o", str(out)]) == 0
     for name in ("report.md", "results.json", "workspace.png", "joint_maps.png", "shapes.png", "forces.png",
                  "stiffness.png"):
         assert (out / name).stat().st_size > 0, name
