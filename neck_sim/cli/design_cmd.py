@@ -12,7 +12,6 @@ HELP = ("compare cable routings for one neck: reachable workspace, stiffness, ho
 
 def add_arguments(parser) -> None:
     add_params_arguments(parser)
-    parser.set_defaults(n_joints=None)
     parser.add_argument("-o", "--out", metavar="DIR", default="design-report",
                         help="output directory (default ./design-report)")
     parser.add_argument("--cables", type=int, default=4,
