@@ -6,8 +6,8 @@ import os
 
 from neck_sim.cli.common import add_params_arguments, params_from_args
 
-HELP = ("compare cable routings for one neck: reachable workspace, stiffness, holding forces, friction "
-        "spread; writes DIR/report.md, DIR/results.json and figures")
+HELP = ("compare cable routings for one neck (default: the 10-X neck): reachable workspace, stiffness, "
+        "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
 
 
 def add_arguments(parser) -> None:
