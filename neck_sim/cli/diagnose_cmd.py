@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import sys
+
+from neck_sim.cli.common import check_paths, nonnegative_float, positive_int, probability
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -21,12 +24,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
     parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
     parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
-    parser.add_argument("--steps", type=int, default=3, metavar="K",
+    parser.add_argument("--steps", type=positive_int, default=3, metavar="K",
                         help="forward selection: at most K findings (default 3; 1 = the verdict only)")
-    parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
-    parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
-    parser.add_argument("--alpha", type=float, default=0.01, help="significance level of the tests (default 0.01)")
-    parser.add_argument("--min-improvement", type=float, default=0.02,
+    parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
+    parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
+    parser.add_argument("--alpha", type=probability, default=0.01, help="significance level of the tests (default 0.01)")
+    parser.add_argument("--min-improvement", type=nonnegative_float, default=0.02,
                         help="smallest held-out score improvement that counts (default 0.02)")
     parser.add_argument("--candidates", default=None,
                         help="comma-separated effects to consider (default: the whole vocabulary)")
@@ -40,13 +43,14 @@ def run(args) -> int:
     from neck_sim.logs import read_log
     from neck_sim.params import load
 
+    check_paths(inputs={"LOG": args.log, "--params": args.params,
+                        "--model": args.model if os.path.isfile(args.model) else None},
+                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report})
     model = parse_model(args.model)              # fail early on a bad --model
     params = load(args.params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
-    if args.steps < 1:
-        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
     settings = DiagnosisSettings(max_steps=args.steps, alpha=args.alpha, min_improvement=args.min_improvement,
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),

@@ -28,6 +28,10 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from neck_sim import params as P
+    from neck_sim.cli.common import check_paths
+
+    check_paths(inputs={"--motors": args.motors, "--camera": args.camera, "--reference": args.reference,
+                        "--estimate": args.estimate, "--params": args.params}, files={"-o": args.output})
     from neck_sim.csv_import import import_csv
 
     params = P.load(args.params) if args.params else P.default_params(3)
@@ -38,7 +42,7 @@ def run(args) -> int:
     counts = ", ".join(f"{k} {v}" for k, v in res.counts.items())
     print(f"wrote {res.path}: {counts} samples over {res.duration:.3f} s (N = {params.n_joints})")
     if res.time_shift:
-        print(f"times shifted by -{res.time_shift:.6f} s")
+        print(f"times shifted by {-res.time_shift:+.6f} s")
     for kind, cols in res.ignored_columns.items():
         if cols:
             print(f"ignored {kind} columns: {', '.join(cols)}")

@@ -14,6 +14,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from neck_sim.cli.common import check_paths
+    check_paths(inputs={"--load": args.load}, files={"-o": args.output})
     params = P.load(args.load) if args.load else P.default_params(args.n_joints)
     if args.output:
         P.save(params, args.output)
