@@ -127,3 +127,19 @@ def check_paths(inputs: dict | None = None, files: dict | None = None, dirs: dic
             raise ValueError(f"{opt} {path}: {base} is a file, not a directory")
         if not os.access(base, os.W_OK | os.X_OK):
             raise ValueError(f"{opt} {path}: the folder {base} is not writable")
+
+
+# -- measured data outside the record's ranges --------------------------------------------------
+
+def add_force_range_argument(parser) -> None:
+    """``--accept-out-of-range-forces``: analyse a log whose commanded forces leave [0, f_max]."""
+    parser.add_argument("--accept-out-of-range-forces", action="store_true",
+                        help="accept logged forces outside [0, f_max] (refused by default); the output says so")
+
+
+def report_input_warnings(log_warnings) -> dict:
+    """Print what was accepted on request (``Log.warnings``); returns the entry for a JSON output
+    (``{"input_warnings": [...]}``, empty without warnings)."""
+    for text in log_warnings:
+        print(f"warning: {text}")
+    return {"input_warnings": list(log_warnings)} if log_warnings else {}

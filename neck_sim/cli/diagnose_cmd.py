@@ -5,7 +5,8 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import check_paths, nonnegative_float, positive_int, probability
+from neck_sim.cli.common import (add_force_range_argument, check_paths, nonnegative_float, positive_int, probability,
+                                 report_input_warnings)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -33,6 +34,7 @@ def add_arguments(parser) -> None:
                         help="smallest held-out score improvement that counts (default 0.02)")
     parser.add_argument("--candidates", default=None,
                         help="comma-separated effects to consider (default: the whole vocabulary)")
+    add_force_range_argument(parser)
     parser.add_argument("--no-resim", action="store_true", help="skip the open-loop re-simulations")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
@@ -54,15 +56,17 @@ def run(args) -> int:
     settings = DiagnosisSettings(max_steps=args.steps, alpha=args.alpha, min_improvement=args.min_improvement,
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
-                   require=("motors", "camera"))
+                   require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
           f"model: {model.describe()}", file=sys.stderr)
     if params is not None and params.n_joints != log.n_joints:
         raise ValueError(f"--params {args.params}: {params.n_joints} joints, the log has {log.n_joints}")
     diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
     print(format_summary(diag))
+    accepted = report_input_warnings(log.warnings)
     if args.json:
-        diag.write_json(args.json)
+        from neck_sim.atomic import atomic_write_json
+        atomic_write_json(args.json, {**diag.to_dict(), **accepted})
         print(f"wrote {args.json}", file=sys.stderr)
     if args.extended:
         diag.write_model(args.extended)

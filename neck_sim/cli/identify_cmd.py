@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from neck_sim.cli.common import check_paths, nonnegative_float, positive_float
+from neck_sim.cli.common import (add_force_range_argument, check_paths, nonnegative_float, positive_float,
+                                 report_input_warnings)
 
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
 
@@ -24,6 +25,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--weight", type=positive_float, default=100.0, help="weight W of the torque rows, eqs (44)-(45)")
     parser.add_argument("--slack-threshold", type=nonnegative_float, default=2.0, metavar="N",
                         help="tension (eq 41) below which a cable sample counts as slack and is left out")
+    add_force_range_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
@@ -44,7 +46,8 @@ def run(args) -> int:
         weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
-    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",))
+    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
+                   accept_out_of_range_forces=args.accept_out_of_range_forces)
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
@@ -53,6 +56,7 @@ def run(args) -> int:
     result = identify_log(log, settings, models=models)
     print(format_tables(result))
     summary = result.to_dict()
+    summary.update(report_input_warnings(log.warnings))
     comparison = None
     if args.simulators:
         from identification.simulator import compare_simulators

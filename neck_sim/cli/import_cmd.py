@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from neck_sim.cli.common import add_force_range_argument
+
 HELP = "turn the prototype's motors/camera CSV files into an MCAP log (columns: see --help)"
 
 EPILOG = """CSV columns (header row, any order, extra columns ignored, SI units, N joints from --params):
@@ -23,6 +25,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--params", metavar="PATH", help="parameter file (.json/.toml) with the nominal constants "
                                                          "(default: the 3-joint prototype)")
     parser.add_argument("--shift-time", action="store_true", help="subtract the earliest time of the files")
+    add_force_range_argument(parser)
     parser.add_argument("-o", "--output", required=True, metavar="MCAP", help="log to write")
 
 
@@ -38,7 +41,8 @@ def run(args) -> int:
     if args.camera is None:
         print("note: no --camera file: the log cannot be used for identification or diagnosis")
     res = import_csv(args.motors, args.output, camera=args.camera, reference=args.reference,
-                     estimate=args.estimate, params=params, shift_time=args.shift_time)
+                     estimate=args.estimate, params=params, shift_time=args.shift_time,
+                     accept_out_of_range_forces=args.accept_out_of_range_forces)
     counts = ", ".join(f"{k} {v}" for k, v in res.counts.items())
     print(f"wrote {res.path}: {counts} samples over {res.duration:.3f} s (N = {params.n_joints})")
     if res.time_shift:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 
-from neck_sim.cli.common import check_paths, nonnegative_float
+from neck_sim.cli.common import add_force_range_argument, check_paths, nonnegative_float
 
 HELP = "re-simulate a log open loop from its initial state and commanded forces; report the drift"
 
@@ -32,6 +32,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-alpha-drift", type=nonnegative_float, metavar="DEG",
                         help="exit with status 1 when a joint angle drifts by more than DEG degrees")
     parser.add_argument("--json", metavar="PATH", help="also write the drift numbers as JSON")
+    add_force_range_argument(parser)
     parser.add_argument("--no-progress", action="store_true")
 
 
@@ -50,7 +51,7 @@ def run(args) -> int:
     changes = dict(_parse_change(s) for s in args.set)
     res = replay(args.log, params=P.load(args.params) if args.params else None,
                  effects=Effects() if args.no_effects else None, changes=changes or None, output=output,
-                 progress=not args.no_progress)
+                 progress=not args.no_progress, accept_out_of_range_forces=args.accept_out_of_range_forces)
     for note in res.notes:
         print(f"note: {note}")
     if changes:
