@@ -17,12 +17,21 @@ def add_params_arguments(parser) -> None:
                         help="number of X-joints N (default 3, or the parameter file's)")
 
 
+def load_params_file(path, option: str = "--params") -> P.NeckParams:
+    """``params.load(path)`` with every error naming the option and the file."""
+    try:
+        return P.load(path)
+    except (ValueError, OSError) as exc:
+        text = str(exc)
+        raise ValueError(text if os.fspath(path) in text else f"{option} {os.fspath(path)}: {text}") from None
+
+
 def params_from_args(args) -> P.NeckParams:
     """The parameters chosen by :func:`add_params_arguments`' options."""
     if args.n_joints is not None and args.n_joints < 1:
         raise ValueError(f"--n-joints: must be >= 1, got {args.n_joints}")
     if args.params:
-        params = P.load(args.params)
+        params = load_params_file(args.params)
         if args.n_joints is not None and args.n_joints != params.n_joints:
             raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {params.n_joints})")
         return params

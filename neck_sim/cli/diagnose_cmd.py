@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_paths, nonnegative_float, positive_int, probability,
-                                 report_input_warnings)
+from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
+                                 positive_int, probability, report_input_warnings)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -43,13 +43,12 @@ def run(args) -> int:
     from identification.discovery import DiagnosisSettings, diagnose_log, parse_model
     from identification.report import format_summary, write_report
     from neck_sim.logs import read_log
-    from neck_sim.params import load
 
     check_paths(inputs={"LOG": args.log, "--params": args.params,
                         "--model": args.model if os.path.isfile(args.model) else None},
                 files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report})
     model = parse_model(args.model)              # fail early on a bad --model
-    params = load(args.params) if args.params else None
+    params = load_params_file(args.params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())

@@ -31,13 +31,13 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from neck_sim import params as P
-    from neck_sim.cli.common import check_paths
+    from neck_sim.cli.common import check_paths, load_params_file
 
     check_paths(inputs={"--motors": args.motors, "--camera": args.camera, "--reference": args.reference,
                         "--estimate": args.estimate, "--params": args.params}, files={"-o": args.output})
     from neck_sim.csv_import import import_csv
 
-    params = P.load(args.params) if args.params else P.default_params(3)
+    params = load_params_file(args.params) if args.params else P.default_params(3)
     if args.camera is None:
         print("note: no --camera file: the log cannot be used for identification or diagnosis")
     res = import_csv(args.motors, args.output, camera=args.camera, reference=args.reference,

@@ -14,9 +14,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from neck_sim.cli.common import check_paths
+    from neck_sim.cli.common import check_paths, load_params_file
     check_paths(inputs={"--load": args.load}, files={"-o": args.output})
-    params = P.load(args.load) if args.load else P.default_params(args.n_joints)
+    params = load_params_file(args.load, "--load") if args.load else P.default_params(args.n_joints)
     if args.output:
         P.save(params, args.output)
         print(f"wrote {args.output}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 
-from neck_sim.cli.common import add_force_range_argument, check_paths, nonnegative_float
+from neck_sim.cli.common import add_force_range_argument, check_paths, load_params_file, nonnegative_float
 
 HELP = "re-simulate a log open loop from its initial state and commanded forces; report the drift"
 
@@ -49,7 +49,7 @@ def run(args) -> int:
         output = args.output or os.path.splitext(args.log)[0] + "-replay.mcap"
     check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"-o": output, "--json": args.json})
     changes = dict(_parse_change(s) for s in args.set)
-    res = replay(args.log, params=P.load(args.params) if args.params else None,
+    res = replay(args.log, params=load_params_file(args.params) if args.params else None,
                  effects=Effects() if args.no_effects else None, changes=changes or None, output=output,
                  progress=not args.no_progress, accept_out_of_range_forces=args.accept_out_of_range_forces)
     for note in res.notes:
