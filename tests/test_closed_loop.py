@@ -167,11 +167,7 @@ def test_simulate_command_refuses_bad_options(argv, message, capsys, tmp_path, m
     from neck_sim.cli import main
 
     monkeypatch.chdir(tmp_path)
-    try:
-        code = main(["simulate", "--no-progress", *argv])
-    except SystemExit as exc:          # argparse's own checks
-        code = exc.code
-    assert code == 2
+    assert main(["simulate", "--no-progress", *argv]) == 2
     assert message in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 

@@ -23,10 +23,7 @@ from neck_sim.params import default_params, save
 
 def run_cli(argv, capsys):
     """(exit status, stdout, stderr) of ``neck-sim argv`` run in this process."""
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:           # argparse
-        code = exc.code
+    code = main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
 

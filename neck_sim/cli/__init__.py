@@ -86,7 +86,10 @@ def write_traceback(exc: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:       # --help (0) or a bad option (2, argparse printed the usage)
+        return exc.code if isinstance(exc.code, int) else 2
     name = f"neck-sim {args.command}"
     try:
         with _sigterm_as_exception():
