@@ -30,6 +30,7 @@ from enum import Enum
 
 import numpy as np
 
+from neck_sim.analytic.dynamics import elongation_step
 from neck_sim.analytic.estimation import pinv_increment
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams, default_params
@@ -113,7 +114,7 @@ class ElongationEstimator:
     def step(self, force, theta_dot) -> np.ndarray:
         """Advance one period with the force (N+1,) N applied during it and the motor speed (rad/s)."""
         t_hat = self.tension(force, theta_dot)
-        self.x = self.x + self.dt / self.c_a * (t_hat - (self.k + self.lam * t_hat) * self.x)
+        self.x = elongation_step(self.x, t_hat, self.dt, self.k, self.lam, self.c_a)
         return self.x
 
 
