@@ -1,10 +1,11 @@
 """Every physical constant of the neck, with its unit and its source, in one place.
 
 Parameters are frozen dataclasses grouped by concept (geometry, actuation, springs, inertia,
-friction, cables, control, sensors) under one :class:`NeckParams`.  Per-joint arrays have length
-N (``n_joints``) and per-cable arrays length N + 1 (cables c1..cN pull on the right, the last one
-is the long left cable).  Arrays are stored as tuples of floats so that parameter sets are
-immutable and hashable; use ``np.asarray`` to compute with them.
+friction, cables, control, sensors, routing) under one :class:`NeckParams`.  Per-joint arrays have
+length N (``n_joints``) and per-cable arrays length m (``n_cables``), in the order of
+``routing.cables``; the default routing is the paper's (m = N + 1: cables c1..cN pull on the right,
+the last one is the long left cable).  Arrays are stored as tuples of floats so that parameter sets
+are immutable and hashable; use ``np.asarray`` to compute with them.
 
 Each field carries ``metadata={"unit": ..., "source": ...}``; :func:`describe` prints them.
 

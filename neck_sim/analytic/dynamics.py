@@ -220,13 +220,13 @@ def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> n
 
 
 def cable_stiffness(tension, k, lam) -> np.ndarray:
-    """Secant stiffness k + lambda t of eq (54), (..., N+1) N/m, for tensions t (..., N+1) N
+    """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
     (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
     return np.asarray(k, dtype=float) + np.asarray(lam, dtype=float) * np.maximum(np.asarray(tension, dtype=float), 0.0)
 
 
 def static_elongation(tension, k, lam) -> np.ndarray:
-    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., N+1) m, 0 for t <= 0.
+    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., m) m, 0 for t <= 0.
 
     The one definition of elongation from tension; :func:`elongation_step` and
     :func:`elongation_series` add the damping c_a x_dot."""
@@ -234,19 +234,19 @@ def static_elongation(tension, k, lam) -> np.ndarray:
 
 
 def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
-    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (N+1,) m.
+    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (m,) m.
 
-    ``x`` (..., N+1) m the elongation at the start of the step, ``tension`` (..., N+1) N (>= 0)
+    ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
     applied during it, ``dt`` s, ``c_a`` N s/m > 0."""
     return x + dt / c_a * (tension - cable_stiffness(tension, k, lam) * x)
 
 
 def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
-    """Elongations x (T, N+1) m of eq (54) for tensions (T, N+1) N held per sample of ``dt`` s.
+    """Elongations x (T, m) m of eq (54) for tensions (T, m) N held per sample of ``dt`` s.
 
     Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
     x_inf = :func:`static_elongation` (stable for any dt; c_a = 0 gives the static elongation);
-    ``x0`` (N+1,) m defaults to the static elongation of the first sample."""
+    ``x0`` (m,) m defaults to the static elongation of the first sample."""
     tension = np.asarray(tension, dtype=float)
     c_a = np.asarray(c_a, dtype=float)
     stiff = cable_stiffness(tension, k, lam)
