@@ -1,5 +1,10 @@
 """Blind tests of the diagnosis (issue 7, item 6): hide an effect in the plant, diagnose the log.
 
+The effects that the open-world generator hides by mechanisms of its own (friction laws, springs,
+payload, delays, pretension, joint friction, camera delay) are tested in
+``test_discovery_open.py``; here remain the cable effects the plant hides through its native C
+callback (eq 54 cables, the pulley friction's C kernel) and the paper's story.
+
 Every log is a 20.8 s identification-like run (3 of the §5.2.2 sequences, 0.9 s moves) of the
 MuJoCo plant with one effect hidden at the test magnitude of ``identification.blind.MAGNITUDES``
 (times a factor in [0.8, 1.25]) on a cable or joint drawn from the seed; the forms differ from
@@ -23,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.blind import hidden_effect, make_case
+from identification.blind import make_case
 from identification.diagnosis import DiagnosisSettings, diagnose_log
 
 SEED = 3
@@ -51,27 +56,9 @@ def _param(finding, name):
 
 
 # effect -> check of the finding against the hidden truth (case.effects / case.params)
-def _check_dry(f, case):
-    j = case.cables[0]
-    eff = case.effects.dry_friction or case.effects.stribeck_friction
-    truth = eff.f_s if case.effects.dry_friction is not None else eff.df
-    assert _param(f, f"f_s({j + 1})") == pytest.approx(truth, rel=0.15)
-
-
-def _check_viscous(f, case):
-    j = case.cables[0]
-    assert _param(f, f"c_v({j + 1})") == pytest.approx(case.effects.viscous_friction.c_v, rel=0.25)
-
-
 def _check_pulley(f, case):
     j = case.cables[0]
     assert _param(f, f"mu({j + 1})") == pytest.approx(case.effects.pulley_friction.mu, rel=0.25)
-
-
-def _check_stribeck(f, case):
-    j = case.cables[0]
-    # the bump's height and width trade against each other through the 2 Hz filter: only its sign
-    assert _param(f, f"df({j + 1})") > 0
 
 
 def _check_elasticity(f, case):
@@ -87,36 +74,18 @@ def _check_stiffening(f, case):
     np.testing.assert_allclose(lam, case.effects.tension_stiffening.lam, rtol=0.3)
 
 
-def _check_payload(f, case):
-    assert _param(f, "payload") == pytest.approx(case.effects.payload.mass, rel=0.2)
-
-
-def _check_spring(f, case):
-    j = case.joints[0]
-    truth = case.params.springs.stiffness[j] * (case.effects.spring_error.stiffness_scale - 1.0)
-    assert _param(f, f"dk({j + 1})") == pytest.approx(truth, rel=0.25)
-
-
-def _check_delay(f, case):
-    assert _param(f, "delay") == pytest.approx(case.effects.actuation_delay.delay, abs=3e-3)
-
-
-def _check_pretension(f, case):
-    j = case.cables[0]
-    assert _param(f, f"x0({j + 1})") == pytest.approx(case.effects.pretension.elongation, abs=0.5e-3)
-
-
-CHECKS = {"dry_friction": _check_dry, "dry_friction:tanh": _check_dry, "viscous_friction": _check_viscous,
-          "stribeck_friction": _check_stribeck, "pulley_friction": _check_pulley,
-          "cable_elasticity": _check_elasticity, "tension_stiffening": _check_stiffening, "payload": _check_payload,
-          "spring_error": _check_spring, "actuation_delay": _check_delay, "pretension": _check_pretension}
+CHECKS = {"pulley_friction": _check_pulley, "cable_elasticity": _check_elasticity,
+          "tension_stiffening": _check_stiffening}
 
 
 @pytest.mark.parametrize("name", list(CHECKS))
 def test_hidden_effect_is_named_located_and_measured(blind, name):
     case, path = blind(name)
     diag = diagnose_log(path, model=",".join(case.model) or "rigid", settings=FAST)
-    assert diag.verdict == case.expect, (case.description, diag.to_dict()["steps"][0]["candidates"][:3])
+    # first name: a one-step diagnosis of elastic cables from a rigid model leaves the plant's
+    # tension stiffening, which the structure tests may add as "unexplained"
+    first = diag.verdict[0] if isinstance(diag.verdict, list) else diag.verdict
+    assert first == case.expect, (case.description, diag.to_dict()["steps"][0]["candidates"][:3])
     finding = diag.findings[0]
     assert finding.effect == case.expect
     assert finding.evidence.improvement >= MARGIN
@@ -162,17 +131,3 @@ def test_paper_story_from_a_rigid_frictionless_model(blind):
     a0 = diag.baseline.alpha_hat_vs_camera.holdout.mean_abs_deg
     a1 = diag.final.alpha_hat_vs_camera.holdout.mean_abs_deg
     assert a1 < 0.75 * a0
-
-
-def test_hidden_effect_forms_differ_from_the_candidates(blind):
-    """The blind cases really hide other forms than the candidates' defaults and grids."""
-    from identification.candidates import SHAPE_GRIDS
-
-    strib = hidden_effect("stribeck_friction", SEED).effects.stribeck_friction
-    assert strib.speed not in SHAPE_GRIDS["stribeck_friction"]["speed"]
-    assert strib.smoothing not in SHAPE_GRIDS["stribeck_friction"]["smoothing"]
-    dry = hidden_effect("dry_friction", SEED).effects.dry_friction
-    assert dry.c_s not in SHAPE_GRIDS["dry_friction"]["c_s"] and dry.cables == hidden_effect("dry_friction", SEED).cables
-    tanh = hidden_effect("dry_friction:tanh", SEED).effects
-    assert tanh.dry_friction is None and tanh.stribeck_friction.speed > 1e5
-    assert hidden_effect("actuation_delay", SEED).effects.actuation_delay.delay not in SHAPE_GRIDS["actuation_delay"]["delay"]

@@ -60,6 +60,21 @@ def cables_of(fit: Fit, term: Term) -> list[int] | None:
     return _located(fit, term, "cable")
 
 
+def shape_located(cables: list[int] | None, parameters: dict, term: Term) -> list[int] | None:
+    """The cables of a per-cable shape (pretension) whose fitted value is clearly non-zero by its
+    profile sigma (:func:`neck_sim.effects.clearly_nonzero`); the others were searched and kept
+    but are not told apart from zero.  Other effects: ``cables`` unchanged."""
+    keys = _per_cable_keys(term)
+    if not keys or cables is None:
+        return cables
+    vals = {cable: parameters.get(f"{sh.name}({cable})") for sh, cable in keys.values()}
+    if any(p is None or p.sigma is None for p in vals.values()):
+        return cables
+    order = sorted(vals)
+    keep = clearly_nonzero([vals[c].value for c in order], [vals[c].sigma for c in order])
+    return [c for c, k in zip(order, keep) if k] or cables
+
+
 def joints_of(fit: Fit, term: Term) -> list[int] | None:
     """1-based joints of an effect fitted per joint or per side spring (spring errors: the
     parameter names say which side, ``dk(2L)``), as :func:`cables_of`."""

@@ -10,7 +10,7 @@ import numpy as np
 from identification.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext
 from identification.diagnosis.gains import alpha_hat_errors, residual_rms
-from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, term_parameters
+from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, shape_located, term_parameters
 from identification.diagnosis.resimulation import resimulate
 from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary
 from identification.diagnosis.search import retune_shapes
@@ -93,8 +93,10 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
         if c is None:
             continue
         ctx = StepContext(data, split, s, st.base, st.scales)
+        params = term_parameters(ctx, c)
         findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
-                                cables_of(c.fit, c.term), joints_of(c.fit, c.term), term_parameters(ctx, c), c,
+                                shape_located(cables_of(c.fit, c.term), params, c.term), joints_of(c.fit, c.term),
+                                params, c,
                                 Gain(summaries[i], summaries[i + 1]), leftover.found))
     return Diagnosis(source, model, split, tuple(steps), tuple(findings), tuple(summaries),
                      ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes))

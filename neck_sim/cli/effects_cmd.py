@@ -32,4 +32,6 @@ def run(args) -> int:
         for name, desc, params, shapes, req, plant in rows:
             print(f"{name:20s} {desc}\n{'':20s} fitted: {params}; shapes: {shapes}; requires: {req}; acts on: {plant}")
     print(f"\n{effects.NONE}: the model explains the data")
+    print(f"{effects.UNEXPLAINED}: the model leaves structure in the residuals beyond noise that no effect above "
+          "explains (alone, or after the effects named)")
     return 0

@@ -36,7 +36,7 @@ class JointFriction(Effect):
     """Coulomb friction ``torque`` (N m) in each revolute hinge (A, B, D) of the affected X-joints.
 
     The plant sets MuJoCo's ``dof_frictionloss`` on those hinges (a constraint-based Coulomb
-    friction).  The diagnosis fits, per joint, the joint torque it gives:
+    friction) with a stiff ``dof_solref``.  The diagnosis fits, per joint, the joint torque it gives:
     torque x :func:`hinge_lever`(alpha) x arctan(alpha_dot / w) 2/pi, with alpha_dot from the
     encoders (:func:`joint_speed_from_encoders`) through the observations' filter chain, w a
     searched smoothing speed (rad/s).
@@ -77,6 +77,9 @@ class JointFriction(Effect):
         tau = self.per_joint(index.n_joints)
         for dofs in (index.dof_A, index.dof_B, index.dof_D):
             model.dof_frictionloss[dofs] = tau
+            # a stiff friction constraint (time constant 2 physics steps): with MuJoCo's default
+            # 20 ms the soft constraint acts as a damper on the light top joint, not as Coulomb
+            model.dof_solref[dofs] = (2 * model.opt.timestep, 1.0)
 
     @classmethod
     def design(cls, data, shape, context):
