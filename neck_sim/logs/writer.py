@@ -18,11 +18,12 @@ import math
 import os
 import platform
 import sys
+import weakref
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from neck_sim.atomic import discard, publish, temp_file_beside
+from neck_sim.atomic import discard, output_error, publish, temp_file_beside
 from neck_sim.logs import foxglove
 from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TopicSpec, neck_metadata,
                                     topic_schema)
@@ -32,6 +33,7 @@ __all__ = ["LogWriter", "MJCF_ATTACHMENT"]
 
 MJCF_ATTACHMENT = "neck.xml"
 _DUMPS = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
+_MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 ns)
 
 
 def _version(package: str) -> str:
@@ -85,6 +87,8 @@ class LogWriter:
         self._viz_period_ns = int(round(1e9 / visualization_rate_hz)) if visualization_rate_hz > 0 else None
         fd, self._tmp = temp_file_beside(self.path)
         self._fh = os.fdopen(fd, "wb")
+        # a writer dropped without close() (an environment never closed) leaves no temporary file
+        self._finalizer = weakref.finalize(self, _drop_file, self._fh, self._tmp)
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library=f"neck-sim {_version('neck-sim')}")
         self._channels: dict[str, int] = {}
@@ -114,12 +118,16 @@ class LogWriter:
         if self._closed:
             return
         self._closed = True
+        self._finalizer.detach()
         try:
-            self._write_visualization()
-            self._writer.finish()
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
+            try:
+                self._write_visualization()
+                self._writer.finish()
+                self._fh.flush()
+                os.fsync(self._fh.fileno())
+                self._fh.close()
+            except OSError as exc:
+                raise output_error(self.path, exc) from None
             publish(self._tmp, self.path)
         except BaseException:
             self._discard()
@@ -132,10 +140,8 @@ class LogWriter:
             self._discard()
 
     def _discard(self) -> None:
-        try:
-            self._fh.close()
-        finally:
-            discard(self._tmp)
+        self._finalizer.detach()
+        _drop_file(self._fh, self._tmp)
 
     # -- contract topics ---------------------------------------------------------------------
     def motors(self, t: float, theta, force) -> None:
@@ -188,6 +194,9 @@ class LogWriter:
         t = float(t)
         if not (t >= 0.0 and math.isfinite(t)):
             raise ValueError(f"{spec.topic}: time t must be finite and >= 0, got {t!r}")
+        if t * 1e9 > _MAX_NS:
+            raise ValueError(f"{spec.topic}: time t = {t!r} s is beyond MCAP's nanosecond timestamps (t < 9.2e9 s); "
+                             "times are seconds since the start of the run")
         ns = int(round(t * 1e9))
         last = self._last_ns.get(spec.topic)
         if last is not None and ns <= last:
@@ -203,7 +212,10 @@ class LogWriter:
                 raise ValueError(f"{spec.topic}: {name} contains NaN or infinity at t = {t!r} s")
             values += row
         ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
-        self._writer.add_message(ch, ns, (fmt % tuple(values)).encode(), ns)
+        try:
+            self._writer.add_message(ch, ns, (fmt % tuple(values)).encode(), ns)
+        except OSError as exc:
+            raise output_error(self.path, exc) from None
         self._last_ns[spec.topic] = ns
         self.counts[spec.topic] += 1
         return ns
@@ -231,3 +243,12 @@ class LogWriter:
                     ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
                 self._writer.add_message(ch, ns, _DUMPS(msg).encode(), ns)
                 self.counts[topic] += 1
+
+
+def _drop_file(fh, tmp: str) -> None:
+    try:
+        fh.close()
+    except OSError:
+        pass
+    finally:
+        discard(tmp)
