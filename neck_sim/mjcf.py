@@ -545,6 +545,9 @@ class ModelIndex(NamedTuple):
     rigid_equality: np.ndarray    # (m,) equality ids of c{j}_rigid, or empty
     helper_joint: np.ndarray  # (H,) 0-based X-joint of each helper
     helper_tendon: np.ndarray     # (H,) tendon ids of the helpers' fixed-tendon locks
+    spring_tendon: np.ndarray     # (N, 2) tendon ids of j{i}_spring_left, j{i}_spring_right
+    spring_stiffness: np.ndarray  # (N, 2) their stiffness as compiled (N/m), before any effect edits it
+    spring_length: np.ndarray     # (N, 2) their rest length as compiled (m)
 
     @property
     def n_cables(self) -> int:
@@ -592,12 +595,14 @@ def model_index(model) -> ModelIndex:
     rigid = rigid if np.all(rigid >= 0) else np.zeros(0, dtype=int)
     S = mujoco.mjtObj.mjOBJ_SITE
     loops = np.stack([ids(S, [f"j{i}_C_top" for i in jn]), ids(S, [f"j{i}_C_bc" for i in jn])], axis=1)
+    springs = ids(T, [f"j{i}_spring_{side}" for i in jn for side in ("left", "right")]).reshape(n, 2)
     return ModelIndex(n, q[jA], q[jB], q[jD], q[jH], q[jM], v[jA], v[jB], v[jD], v[jH], v[jM],
                       ids(T, [f"c{j}" for j in cn]),
                       ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"drive{j}" for j in cn]),
                       ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"tension{j}" for j in cn]),
                       loops, bars, others, rigid, np.array([i - 1 for i, _ in helpers], dtype=int),
-                      ids(T, [f"{h}_lock" for h in hnames]))
+                      ids(T, [f"{h}_lock" for h in hnames]), springs,
+                      model.tendon_stiffness[springs].copy(), model.tendon_lengthspring[springs, 0].copy())
 
 
 class PoseQpos(NamedTuple):

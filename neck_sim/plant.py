@@ -302,7 +302,7 @@ class Plant:
         self._out_alpha = np.ctypeslib.as_array(self._c.alpha)[:n]
         self._out_alpha_dot = np.ctypeslib.as_array(self._c.alpha_dot)[:n]
         self._delay = self.effects.command_delay()
-        self._camera_delay = self.effects.camera_delay()      # a frame stamped t shows the neck at t - delay
+        self._camera_delay = self.effects.camera_lag()    # a frame stamped t shows the neck at t - delay
         self._n1 = m
         if not np.array_equal(ix.drive_actuator, np.arange(m)):
             raise RuntimeError("model: the drive actuators must be the first m actuators (one per cable)")
