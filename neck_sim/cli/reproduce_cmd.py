@@ -12,7 +12,10 @@ def add_arguments(parser) -> None:
                         help="half-length trajectories and fewer samples: the same stages in about a third of the time")
     parser.add_argument("--seed", type=int, default=0, help="plant seed (camera noise) (default 0)")
     parser.add_argument("--workers", type=int, default=None,
-                        help="parallel closed-loop runs (default: one per core)")
+                        help="local worker processes for the closed-loop runs (default: one per core; 1: serial)")
+    parser.add_argument("--cluster", default=None, metavar="tcp://HOST:PORT",
+                        help="run the closed-loop runs and the simulator comparison on this Dask scheduler "
+                             "(started with `dask scheduler`; workers with `dask worker ADDRESS --nthreads 1`)")
     parser.add_argument("--duration-scale", type=float, default=None, metavar="S",
                         help="scale every trajectory's duration (default 1, or 0.5 with --quick)")
     parser.add_argument("--no-render", action="store_true", help="skip the offscreen rendering of figure 10")
@@ -22,7 +25,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from neck_sim.cli.reproduce import ReproduceSettings, reproduce
 
-    settings = ReproduceSettings(out=args.out, quick=args.quick, seed=args.seed, workers=args.workers, scale=args.duration_scale,
+    settings = ReproduceSettings(out=args.out, quick=args.quick, seed=args.seed, workers=args.workers,
+                                 cluster=args.cluster, scale=args.duration_scale,
                                  progress=not args.no_progress, render=not args.no_render)
     results = reproduce(settings)
     print(f"wrote {settings.out}/report.md and results.json "
