@@ -42,7 +42,7 @@ def _one(job):
 def _one_in(job, directory):
     name, seed, level = job
     from identification.blind import MAGNITUDES, make_case
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
 
     path = os.path.join(directory, f"{name.replace(':', '_')}_{seed}_{level}.mcap")
     t0 = time.perf_counter()
@@ -69,26 +69,24 @@ def _one_in(job, directory):
             "verdict": v if isinstance(v, str) else "ambiguous:" + "+".join(v),
             "improvement": f["evidence"]["holdout_improvement"] if f else
             max((c.improvement for c in diag.steps[0].candidates), default=0.0),
-            "located": (where == truth_where) if (f and truth_where and case.expect in ("dry_friction",
-                                                   "viscous_friction", "stribeck_friction", "pulley_friction",
-                                                   "pretension", "spring_error")) else None,
+            # located: effects hidden on one cable or joint (not those on every cable, nor payload or delay)
+            "located": (where == truth_where) if (f and truth_where and len(truth_where) == 1) else None,
             "t_sim": t_sim, "t_diag": t_diag}
 
 
 def _units(name: str) -> str:
-    return {"dry_friction": "N", "dry_friction:tanh": "N", "viscous_friction": "N s/rad", "stribeck_friction": "N",
-            "pulley_friction": "", "cable_elasticity": "x Table 2 k", "tension_stiffening": "x Table 2 lambda",
-            "payload": "kg", "spring_error": "relative", "actuation_delay": "s", "pretension": "m"}.get(name, "")
+    from identification.blind import blind_forms
+
+    form = blind_forms().get(name)
+    return form[0].blind_unit if form else ""
 
 
 def confusion_tables(results, levels) -> str:
-    from identification.candidates import EFFECTS
+    from neck_sim import effects
 
-    cols = ["none"] + list(EFFECTS) + ["ambiguous"]
-    short = {"none": "none", "dry_friction": "dry", "viscous_friction": "visc", "stribeck_friction": "strib",
-             "pulley_friction": "pulley", "cable_elasticity": "elast", "tension_stiffening": "stiff",
-             "payload": "payload", "spring_error": "spring", "actuation_delay": "delay", "pretension": "pret",
-             "ambiguous": "ambig"}
+    cols = [effects.NONE] + list(effects.names()) + ["ambiguous"]
+    short = {effects.NONE: "none", "ambiguous": "ambig",
+             **{c.name: c.abbreviation or c.name for c in effects.registered()}}
     out = []
     cases = list(dict.fromkeys(r["case"] for r in results))
     for level in levels:
@@ -151,7 +149,7 @@ def limit_table(results, levels) -> str:
 def timing(progress: bool = True) -> str:
     """Whole diagnosis of a 60 s log on one core, and the paper's identification of the same log."""
     from identification.blind import excitation_trajectory, hidden_effect, run_log
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
     from identification.paper import identify_log
     from neck_sim.logs import read_log
 
@@ -211,7 +209,8 @@ def story(progress: bool = True) -> str:
     from controllers.closed_loop import run_closed_loop
     from controllers.computed_torque import ComputedTorqueController
     from controllers.trajectories import identification_trajectory
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
+    from neck_sim.effects import CableElasticity, DryFriction, TensionStiffening
     from neck_sim.params import default_params
     from neck_sim.plant import Plant
 
@@ -227,14 +226,14 @@ def story(progress: bool = True) -> str:
              f"rigid frictionless model in {t_diag:.0f} s): steps "
              + " -> ".join(f"`{f['effect']}`" for f in diag.findings) + f" -> `{diag.steps[-1].verdict}`\n",
              "| step | effect | held-out improvement | identified | plant |", "|---|---|---|---|---|"]
-    truth = {"dry_friction": ("f_s", p.friction.f_s), "cable_elasticity": ("k", p.cables.k_linear),
-             "tension_stiffening": ("lambda", p.cables.lam)}
+    truth = {DryFriction.name: ("f_s", p.friction.f_s), CableElasticity.name: ("k", p.cables.k_linear),
+             TensionStiffening.name: ("lambda", p.cables.lam)}
     for f in diag.findings:
         sym, ref = truth.get(f["effect"], (None, None))
         vals = [v["value"] for k, v in f["parameters"].items() if sym and k.split("(")[0] == sym]
         ident = ", ".join(f"{v:.4g}" for v in vals)
         plant = ", ".join(f"{v:.4g}" for v in ref) if ref is not None else ""
-        if f["effect"] == "cable_elasticity":
+        if f["effect"] == CableElasticity.name:
             plant = "(Table 1, linear fit of the paper: " + plant + ")"
         lines.append(f"| {f['step']} | {f['effect']} | {100 * f['evidence']['holdout_improvement']:.1f} % | "
                      f"{sym}: {ident} | {plant} |")

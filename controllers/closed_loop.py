@@ -70,7 +70,7 @@ class RunResult:
     """Arrays of one closed-loop run (T control samples, C camera frames) and its metrics.
 
     t (T,) s; alpha_d, alpha_hat, alpha, alpha_dot (T, N); theta, force, requested, saturated,
-    elongation_hat, tension, elongation (T, N+1); gamma (T, N) N m; loop_gap (T,) m;
+    elongation_hat, tension, elongation (T, m) (m cables); gamma (T, N) N m; loop_gap (T,) m;
     camera_t (C,), camera_alpha (C, N).
     """
 
@@ -180,11 +180,12 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
     # The plant's seed, effects and parameters make `neck-sim replay` of this log exact.
     info = {**plant_run_info(plant), "trajectory": trajectory.name, "duration_s": trajectory.duration,
             "law": int(controller.law), "controller": controller.describe(), "rate_hz": rate, **(run_info or {})}
+    m = p.n_cables
     rec = {name: np.empty((steps,) + shape) for name, shape in (
-        ("t", ()), ("alpha_hat", (n,)), ("theta", (n + 1,)), ("force", (n + 1,)), ("requested", (n + 1,)),
-        ("elongation_hat", (n + 1,)), ("gamma", (n,)), ("alpha", (n,)), ("alpha_dot", (n,)),
-        ("tension", (n + 1,)), ("elongation", (n + 1,)), ("loop_gap", ()))}
-    rec["saturated"] = np.zeros((steps, n + 1), dtype=bool)
+        ("t", ()), ("alpha_hat", (n,)), ("theta", (m,)), ("force", (m,)), ("requested", (m,)),
+        ("elongation_hat", (m,)), ("gamma", (n,)), ("alpha", (n,)), ("alpha_dot", (n,)),
+        ("tension", (m,)), ("elongation", (m,)), ("loop_gap", ()))}
+    rec["saturated"] = np.zeros((steps, m), dtype=bool)
     cam_t, cam_a = [], []
 
     writer = _log_writer(log_path, plant, info)

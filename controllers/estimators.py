@@ -30,6 +30,7 @@ from enum import Enum
 
 import numpy as np
 
+from neck_sim.analytic.dynamics import elongation_step
 from neck_sim.analytic.estimation import pinv_increment
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams, default_params
@@ -113,7 +114,7 @@ class ElongationEstimator:
     def step(self, force, theta_dot) -> np.ndarray:
         """Advance one period with the force (N+1,) N applied during it and the motor speed (rad/s)."""
         t_hat = self.tension(force, theta_dot)
-        self.x = self.x + self.dt / self.c_a * (t_hat - (self.k + self.lam * t_hat) * self.x)
+        self.x = elongation_step(self.x, t_hat, self.dt, self.k, self.lam, self.c_a)
         return self.x
 
 
@@ -126,7 +127,7 @@ class JointAngleEstimator:
         n = params.n_joints
         self.alpha_hat = np.zeros(n)
         self.theta = None
-        self.x = np.zeros(n + 1)
+        self.x = np.zeros(params.n_cables)
 
     def reset(self, alpha0=None, theta0=None) -> None:
         """Start at pose ``alpha0`` (default straight) with the cables unstretched.
@@ -136,8 +137,9 @@ class JointAngleEstimator:
         """
         n = self.params.n_joints
         self.alpha_hat = np.zeros(n) if alpha0 is None else _per_cable(alpha0, n, "alpha0")
-        self.theta = None if theta0 is None else _per_cable(theta0, n + 1, "theta0")
-        self.x = np.zeros(n + 1)
+        m = self.params.n_cables
+        self.theta = None if theta0 is None else _per_cable(theta0, m, "theta0")
+        self.x = np.zeros(m)
         if self.elongation is not None:
             self.elongation.reset()
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from neck_sim.analytic import forward_kinematics
-from neck_sim.params import NeckParams
+from neck_sim.params import NeckParams, paper_routing
 
 __all__ = ["TF_TOPIC", "SCENE_TOPIC", "FRAME_TRANSFORMS_SCHEMA", "SCENE_UPDATE_SCHEMA",
            "frame_transforms", "scene_update", "visualization_messages"]
@@ -97,11 +97,12 @@ def _line(kind: int, points, rgba, thickness: float) -> dict:
             "color": dict(zip("rgba", rgba))}
 
 
-def scene_update(log_time: int, corners, source: str) -> dict:
+def scene_update(log_time: int, corners, source: str, routing=None) -> dict:
     """``foxglove.SceneUpdate`` drawing the neck from the joint corners (N, 4, 2) (A, B, C, D) m.
 
     ``source`` is ``"truth"`` (bars, springs and cables), ``"estimate"`` or ``"camera"`` (bars only);
-    each source is one entity, replaced by the next update of the same source.
+    each source is one entity, replaced by the next update of the same source.  Cables follow
+    ``routing`` (default the paper's) through the axes of the pulleys they wrap.
     """
     corners = np.asarray(corners).tolist()
     bars, springs = [], []
@@ -113,15 +114,13 @@ def scene_update(log_time: int, corners, source: str) -> dict:
     lines = [_line(2, bars, _SOURCE_COLORS[source], 0.004)]
     if source == "truth":
         lines.append(_line(2, springs, (0.5, 0.5, 0.5, 0.6), 0.0015))
-        n = len(corners)
-        for j in range(n):                      # right cable j+1: crosses joints 1..j, up the right of j+1
-            path = [corners[0][1]]
-            for i in range(j):
-                path += [corners[i][2], corners[i][3]]
-            path.append(corners[j][3])
-            lines.append(_line(0, path, (*_CABLE_COLORS[min(j, 2)], 1.0), 0.002))
-        left = [corners[0][0]] + [corners[i][2] for i in range(n)]
-        lines.append(_line(0, left, (*_LEFT_COLOR, 1.0), 0.002))
+        routing = paper_routing(len(corners)) if routing is None else routing
+        index = {"A": 0, "B": 1, "C": 2, "D": 3}
+        for j, cable in enumerate(routing.cables):
+            end = ("C" if cable.side == "left" else "D", cable.ends_at)
+            path = [corners[i - 1][index[corner]] for corner, i in cable.pulleys() + (end,)]
+            rgb = _LEFT_COLOR if cable.side == "left" else _CABLE_COLORS[min(j, 2)]
+            lines.append(_line(0, path, (*rgb, 1.0), 0.002))
     entity = {"timestamp": _stamp(log_time), "frame_id": "neck", "id": f"neck/{source}",
               "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False, "lines": lines}
     return {"entities": [entity]}
@@ -137,4 +136,4 @@ def visualization_messages(log_times, alphas, params: NeckParams, source: str, t
     for k, ns in enumerate(log_times):
         if tf:
             yield TF_TOPIC, ns, frame_transforms(ns, kin.frame_origin[k], kin.frame_angle[k])
-        yield SCENE_TOPIC, ns, scene_update(ns, kin.corners[k], source)
+        yield SCENE_TOPIC, ns, scene_update(ns, kin.corners[k], source, params.routing)

@@ -139,7 +139,7 @@ class LogWriter:
 
     # -- contract topics ---------------------------------------------------------------------
     def motors(self, t: float, theta, force) -> None:
-        """Encoder angles theta (N+1,) rad and commanded forces (N+1,) N at time t (s)."""
+        """Encoder angles theta (m,) rad and commanded forces (m,) N at time t (s); m = params.n_cables."""
         self._write(TOPIC_BY_NAME["motors"], t, (theta, force))
 
     def camera(self, t: float, alpha) -> None:
@@ -157,7 +157,7 @@ class LogWriter:
         self._visualize("estimate", ns, alpha_hat)
 
     def truth(self, t: float, alpha, alpha_dot, tension, elongation) -> None:
-        """Simulation truth: alpha, alpha_dot (N,), tension (N+1,) N, elongation (N+1,) m."""
+        """Simulation truth: alpha, alpha_dot (N,), tension (m,) N, elongation (m,) m."""
         ns = self._write(TOPIC_BY_NAME["truth"], t, (alpha, alpha_dot, tension, elongation))
         self._visualize("truth", ns, alpha)
 
@@ -176,7 +176,7 @@ class LogWriter:
         """(field lengths, %-format of one message) of a topic, built once."""
         layout = self._layouts.get(spec.name)
         if layout is None:
-            lengths = spec.lengths(self._n)
+            lengths = spec.lengths(self._n, self.params.n_cables)
             # %r of a Python float is its shortest round-trip repr: the JSON number json.dumps writes.
             parts = ['{"t":%r'] + [f',"{f}":[' + ",".join(["%r"] * k) + "]" for f, k in zip(spec.field_names, lengths)]
             layout = self._layouts[spec.name] = (lengths, "".join(parts) + "}")
@@ -202,7 +202,7 @@ class LogWriter:
             if not all(map(math.isfinite, row)):
                 raise ValueError(f"{spec.topic}: {name} contains NaN or infinity at t = {t!r} s")
             values += row
-        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n))
+        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
         self._writer.add_message(ch, ns, (fmt % tuple(values)).encode(), ns)
         self._last_ns[spec.topic] = ns
         self.counts[spec.topic] += 1
