@@ -14,8 +14,9 @@ distributed = pytest.importorskip("distributed")
 
 @pytest.fixture(scope="module")
 def cluster():
+    # everything on the loopback address, the scheduler's HTTP server included (on a free port)
     with distributed.LocalCluster(host="127.0.0.1", n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=40) as c:
+                                  dashboard_address="127.0.0.1:0", silence_logs=40) as c:
         yield c
 
 
@@ -39,3 +40,15 @@ def test_an_unreachable_cluster_is_named():
     with pytest.raises(ClusterError, match=r"tcp://127.0.0.1:9.*no Dask scheduler"):
         with open_executor(ExecutorSpec(cluster="tcp://127.0.0.1:9", connect_timeout=1.0)):
             pass
+
+
+def test_blind_logs_generated_on_the_cluster_equal_local_ones(cluster, tmp_path):
+    from identification.blind import make_case, make_cases
+
+    [(case, path)] = make_cases([("viscous_friction", 5, 0.5)], tmp_path / "dask",
+                                ExecutorSpec(cluster=cluster.scheduler_address), progress=False)
+    here, _ = make_case("viscous_friction", 5, tmp_path / "here.mcap", level=0.5)
+    assert case == here and path == str(tmp_path / "dask" / "viscous_friction_5_0.5.mcap")
+    a, b = read_log(path, topics=("motors", "camera")), read_log(tmp_path / "here.mcap", topics=("motors", "camera"))
+    np.testing.assert_array_equal(a.motors.theta, b.motors.theta)
+    np.testing.assert_array_equal(a.camera.alpha, b.camera.alpha)
