@@ -62,12 +62,12 @@ def _one_in(job, directory):
     f = diag.findings[0] if diag.findings else None
     where = None
     if f is not None:
-        where = f.get("joints") or f.get("cables")
+        where = f.joints or f.cables
     truth_where = [j + 1 for j in case.joints] or [c + 1 for c in case.cables] or None
     return {"case": name, "seed": seed, "level": level, "expect": case.expect, "magnitude": case.magnitude,
             "nominal_magnitude": MAGNITUDES.get(name, 0.0) * level, "description": case.description,
             "verdict": v if isinstance(v, str) else "ambiguous:" + "+".join(v),
-            "improvement": f["evidence"]["holdout_improvement"] if f else
+            "improvement": f.evidence.improvement if f else
             max((c.improvement for c in diag.steps[0].candidates), default=0.0),
             # located: effects hidden on one cable or joint (not those on every cable, nor payload or delay)
             "located": (where == truth_where) if (f and truth_where and len(truth_where) == 1) else None,
@@ -224,23 +224,23 @@ def story(progress: bool = True) -> str:
         t_diag = time.perf_counter() - t0
     lines = [f"\n**The paper's story** (identification trajectory, 85 s, law 1, default plant; diagnosis from the "
              f"rigid frictionless model in {t_diag:.0f} s): steps "
-             + " -> ".join(f"`{f['effect']}`" for f in diag.findings) + f" -> `{diag.steps[-1].verdict}`\n",
+             + " -> ".join(f"`{f.effect}`" for f in diag.findings) + f" -> `{diag.steps[-1].verdict}`\n",
              "| step | effect | held-out improvement | identified | plant |", "|---|---|---|---|---|"]
     truth = {DryFriction.name: ("f_s", p.friction.f_s), CableElasticity.name: ("k", p.cables.k_linear),
              TensionStiffening.name: ("lambda", p.cables.lam)}
     for f in diag.findings:
-        sym, ref = truth.get(f["effect"], (None, None))
-        vals = [v["value"] for k, v in f["parameters"].items() if sym and k.split("(")[0] == sym]
+        sym, ref = truth.get(f.effect, (None, None))
+        vals = [v.value for k, v in f.parameters.items() if sym and k.split("(")[0] == sym]
         ident = ", ".join(f"{v:.4g}" for v in vals)
         plant = ", ".join(f"{v:.4g}" for v in ref) if ref is not None else ""
-        if f["effect"] == CableElasticity.name:
+        if f.effect == CableElasticity.name:
             plant = "(Table 1, linear fit of the paper: " + plant + ")"
-        lines.append(f"| {f['step']} | {f['effect']} | {100 * f['evidence']['holdout_improvement']:.1f} % | "
+        lines.append(f"| {f.step} | {f.effect} | {100 * f.evidence.improvement:.1f} % | "
                      f"{sym}: {ident} | {plant} |")
     b, a = diag.baseline, diag.final
     lines.append(f"\nalpha_hat against the camera (held out, mean |error|): "
-                 f"{b['alpha_hat_vs_camera']['holdout']['mean_abs_deg']:.2f} deg (rigid) -> "
-                 f"{a['alpha_hat_vs_camera']['holdout']['mean_abs_deg']:.2f} deg (final); paper (eq 35): 2.79 -> 1.36 deg")
+                 f"{b.alpha_hat_vs_camera.holdout.mean_abs_deg:.2f} deg (rigid) -> "
+                 f"{a.alpha_hat_vs_camera.holdout.mean_abs_deg:.2f} deg (final); paper (eq 35): 2.79 -> 1.36 deg")
     return "\n".join(lines)
 
 

@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from neck_sim.analytic.geometry import forward_kinematics
-from neck_sim.analytic.statics import (friction_band, inverse_statics, motor_angles_for, motor_stiffness)
+from neck_sim.analytic.statics import (equilibrium_for_forces, friction_band, inverse_statics, least_tensions,
+                                       motor_angles_for, motor_stiffness)
 from neck_sim.analytic.workspace import head_stiffness, sample_workspace
 from neck_sim.params import NeckParams
 
@@ -127,6 +128,19 @@ def _deg(x):
     return np.degrees(np.asarray(x, dtype=float))
 
 
+def _uncontrolled_stiffness(K, alpha, p: NeckParams) -> float | None:
+    """Smallest stiffness (N m/rad) of the joint motions no cable reaches (the null space of Z^T,
+    N - rank Z of them): only springs, gravity and the cables' curvature hold them, and no motor
+    can damp or correct them.  None when the cables reach every motion."""
+    from neck_sim.analytic.cables import transmission_matrix
+    U, sv, _ = np.linalg.svd(transmission_matrix(alpha, p))
+    rank = int(np.sum(sv > 1e-9 * sv.max()))
+    if rank == p.n_joints:
+        return None
+    Un = U[:, rank:]
+    return float(np.linalg.eigvalsh(Un.T @ K @ Un)[0])
+
+
 PRETENSIONS = (None, 25.0, 50.0)   # N: the straight pose held with tensions >= t_min (None), 25 N, 50 N
 
 
@@ -135,12 +149,13 @@ def _straight(p: NeckParams) -> dict:
     out = {}
     for level in PRETENSIONS:
         lo = p.actuation.t_min if level is None else level
-        sol = inverse_statics(p, alpha_target=np.zeros(p.n_joints), f_min=lo)
-        eq = sol.equilibrium
-        K_m = motor_stiffness(eq.alpha, motor_angles_for(eq.alpha, sol.forces, p), p)
+        forces = least_tensions(np.zeros(p.n_joints), p, f_min=lo)
+        eq = equilibrium_for_forces(forces, p)
+        K_m = motor_stiffness(eq.alpha, motor_angles_for(eq.alpha, forces, p), p)
         lam_m = np.linalg.eigvalsh(K_m)
         out[f"{lo:g}"] = {
-            "forces": sol.forces, "pose_error_deg": float(np.max(np.abs(_deg(sol.task_error)))),
+            "min_eig_uncontrolled": _uncontrolled_stiffness(K_m, eq.alpha, p),
+            "forces": forces, "pose_error_deg": float(np.max(np.abs(_deg(eq.alpha)))),
             "min_eig_force": float(eq.eigenvalues[0]), "min_eig_motor": float(lam_m[0]),
             "max_eig_motor": float(lam_m[-1]), "force_control_stable": bool(eq.eigenvalues[0] > 0),
             "head_lateral_stiffness_motor": float(head_stiffness(eq.alpha, K_m, p)[0])}

@@ -157,15 +157,18 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
     lines += ["", "Straight pose held with the least tensions above a pretension: smallest eigenvalue of K_f "
               "(force control) and K_theta (held motors, elastic cables), N m/rad, and the head's lateral "
               "stiffness with held motors (N/m; negative: unstable).", "",
-              "| routing | pretension (N) | tensions (N) | min eig K_f | min eig K_theta | head stiffness (N/m) |",
-              "|---|---|---|---|---|---|"]
+              "| routing | pretension (N) | tensions (N) | min eig K_f | min eig K_theta | uncontrolled modes | "
+              "head stiffness (N/m) |", "|---|---|---|---|---|---|---|"]
     for r in results:
         for level, s in r.summary["straight"].items():
             tensions = ", ".join(f"{f:.1f}" for f in s["forces"])
             lines.append(f"| {r.strategy.name} | {level} | {tensions} | {s['min_eig_force']:.2f} "
-                         f"| {s['min_eig_motor']:.2f} | {s['head_lateral_stiffness_motor']:.1f} |")
+                         f"| {s['min_eig_motor']:.2f} | {_fmt(s['min_eig_uncontrolled'], '.2f')} "
+                         f"| {s['head_lateral_stiffness_motor']:.1f} |")
     lines += ["", "A negative smallest eigenvalue of K_f means the pose cannot be held by force control alone "
-              "(gravity wins); K_theta adds the elastic cables of held motors.", "",
+              "(gravity wins); K_theta adds the elastic cables of held motors. *Uncontrolled modes*: the smallest "
+              "stiffness of the joint motions no cable reaches (null space of Z^T): springs, gravity and the "
+              "cables' curvature (pretension) alone hold them, and no motor can damp them.", "",
               "## Holding forces and friction spread", "",
               "| routing | shape | max tension (N) | error | friction: joint spread (deg) | head spread (mm) | "
               "corners in range |", "|---|---|---|---|---|---|---|"]

@@ -47,6 +47,7 @@ import math
 import os
 import warnings
 import weakref
+from collections.abc import Mapping, Set as AbstractSet
 from typing import NamedTuple
 
 import mujoco
@@ -62,6 +63,7 @@ from neck_sim.params import NeckParams, default_params
 
 __all__ = ["Plant", "Truth", "PlantDivergedError", "set_backend", "get_backend", "native_available",
            "NativeBuildError", "MAX_CABLES"]
+
 
 class Truth(NamedTuple):
     """What only a simulation knows, at the current instant (SI units).
@@ -270,8 +272,9 @@ class Plant:
         period = 1.0 / self.params.control.rate_hz
         nsub = int(round(period / dt)) if (math.isfinite(dt) and dt > 0) else 0
         if nsub < 1 or abs(nsub * dt - period) > 1e-9 * period:
-            raise ValueError(f"timestep: {timestep!r} s must divide the control period {period} s "
-                             f"(control.rate_hz = {self.params.control.rate_hz})")
+            raise ValueError(f"control.rate_hz = {self.params.control.rate_hz:g} Hz: its period {period:.6g} s is "
+                             f"not a whole number of physics steps of {dt:g} s (timestep"
+                             f"{' default' if timestep is None else ''}); choose a rate that divides {1 / dt:g} Hz")
         self.timestep = dt
         self.period = period
         self.substeps = nsub
@@ -447,6 +450,8 @@ class Plant:
         """Commanded forces as a list of floats clipped to [0, f_max]; bad input raises ValueError."""
         n1 = self._n1
         try:
+            if isinstance(forces, (Mapping, AbstractSet, str, bytes)):   # iterating would read keys, not forces
+                raise TypeError
             vals = [float(v) for v in forces]
         except (TypeError, ValueError):
             raise ValueError(f"forces: expected {n1} numbers (one per cable), got {np.shape(forces)} "

@@ -86,7 +86,7 @@ def test_strategies_are_what_they_claim():
 @needs_routing
 def test_design_command_writes_report_and_results(tmp_path, capsys):
     out = tmp_path / "report"
-    assert main(["design", "--n-joints", "4", "--samples", "40", "-o", str(out)]) == 0
+    assert main(["design", "--n-joints", "3", "--samples", "20", "-o", str(out)]) == 0
     for name in ("report.md", "results.json", "workspace.png", "joint_maps.png", "shapes.png", "forces.png",
                  "stiffness.png"):
         assert (out / name).stat().st_size > 0, name
@@ -102,7 +102,7 @@ def test_design_command_writes_report_and_results(tmp_path, capsys):
             assert shape in s["shapes"]
         # the holding forces reported for the C curve give back the reported pose
         c = s["shapes"]["C"]
-        p = default_params(4) if s["name"] == "given" else None
+        p = default_params(3) if s["name"] == "given" else None
         if p is not None and c["reachable"]:
             eq = equilibrium_for_forces(np.array(c["forces"]), p, np.radians(c["alpha_deg"]) + 0.01)
             assert np.max(np.abs(np.degrees(eq.alpha) - c["alpha_deg"])) < 1e-6

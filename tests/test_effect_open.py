@@ -126,7 +126,7 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     # another seed through the Python API, with every registered effect a candidate
     cable, bias, path = bias_logs[2]
     diag = diagnose_log(path, settings=DiagnosisSettings(max_steps=1, resimulate=False, alpha_hat=False))
-    assert diag.verdict == "cable_bias" and diag.findings[0]["cables"] == [cable + 1]
+    assert diag.verdict == "cable_bias" and diag.findings[0].cables == [cable + 1]
     _, effects, rigid = plant_model(diag.steps[0].chosen.fit, default_params(3))
     assert not rigid and effects.cable_bias.per_cable(4)[cable] == pytest.approx(bias, rel=0.25)
 

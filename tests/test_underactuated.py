@@ -90,3 +90,7 @@ def test_bad_input_names_the_problem():
         ReachablePath(p, [[10, 10, 10, 10], [100, 2, 2, 2]], move_time=0.5)
     with pytest.raises(ValueError, match="f_s"):
         UnderactuatedController(p, f_s=[1.0, 2.0])
+    # the 10-X, 4-cable neck straight at 8.5 N pretension: an equilibrium, unstable with held motors
+    p10 = _neck10()
+    with pytest.raises(ValueError, match="unstable even with the motors held"):
+        ReachablePath(p10, [np.full(4, 8.5), np.full(4, 8.5)], move_time=0.2, hold_time=0.0)

@@ -75,3 +75,10 @@ class DiagnosisSettings:
         unknown = [c for c in self.candidates if c not in effect_names()]
         if unknown:
             raise ValueError(f"candidates: unknown {unknown}")
+
+    def to_dict(self) -> dict:
+        """The method settings (the pre-processing's are recorded with the data)."""
+        return {"moves_per_block": self.moves_per_block, "holdout_every": self.holdout_every, "chunk_s": self.chunk_s,
+                "min_improvement": self.min_improvement, "alpha": self.alpha, "max_steps": self.max_steps,
+                "candidates": list(self.candidates), "resimulate": self.resimulate, "alpha_hat": self.alpha_hat,
+                "iterations": self.iterations}

@@ -44,7 +44,7 @@ from neck_sim.params import NeckParams
 
 __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
            "force_stiffness", "motor_stiffness", "equilibrium_for_forces", "equilibrium_for_motor_angles",
-           "motor_angles_for", "with_payload", "HoldingSolution", "inverse_statics", "friction_band"]
+           "motor_angles_for", "with_payload", "HoldingSolution", "inverse_statics", "least_tensions", "friction_band"]
 
 
 class Equilibrium(NamedTuple):
@@ -369,6 +369,22 @@ def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, 
                          f"({sol.message}); it is out of reach with tensions in [{lo:g}, {hi:g}] N")
     err, _ = _task(eq.alpha, p, alpha_target, head_target)
     return HoldingSolution(forces, eq, err)
+
+
+def least_tensions(alpha, params: NeckParams, f_min: float | None = None, f_max: float | None = None) -> np.ndarray:
+    """The smallest total tension (m,) N in [f_min, f_max] that holds pose ``alpha`` (N,) exactly:
+    the linear program min sum t subject to Z t = g (eq 30 at rest); ValueError if none does."""
+    from scipy.optimize import linprog
+
+    a = check_alpha(alpha, params.n_joints)
+    lo = params.actuation.f_min if f_min is None else float(f_min)
+    hi = params.actuation.f_max if f_max is None else float(f_max)
+    Z = cable_kinematics(a, np.zeros_like(a), params).Z
+    res = linprog(np.ones(params.n_cables), A_eq=Z, b_eq=gravity_spring_torque(a, params), bounds=(lo, hi),
+                  method="highs")
+    if res.status != 0:
+        raise ValueError(f"least_tensions: no tensions in [{lo:g}, {hi:g}] N hold this pose ({res.message})")
+    return res.x
 
 
 def friction_band(forces, alpha, params: NeckParams, f_s=None, max_corners: int = 256, seed: int = 0) -> Equilibrium:

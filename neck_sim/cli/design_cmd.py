@@ -6,13 +6,12 @@ import os
 
 from neck_sim.cli.common import add_params_arguments, params_from_args
 
-HELP = ("compare cable routings for one neck: reachable workspace, stiffness, holding forces, friction "
-        "spread; writes DIR/report.md, DIR/results.json and figures")
+HELP = ("compare cable routings for one neck (default: the 10-X neck): reachable workspace, stiffness, "
+        "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
 
 
 def add_arguments(parser) -> None:
     add_params_arguments(parser)
-    parser.set_defaults(n_joints=None)
     parser.add_argument("-o", "--out", metavar="DIR", default="design-report",
                         help="output directory (default ./design-report)")
     parser.add_argument("--cables", type=int, default=4,
@@ -31,11 +30,11 @@ def _candidates(params, args):
     if args.no_strategies:
         return [given]
     proposed = routing_strategies(params, args.cables)
-    cases = getattr(params.routing, "segment_cases", None)
-    if cases is not None:
-        mine = cases(params.n_joints).tolist()
-        same = [s for s in proposed if s.params.routing.segment_cases(params.n_joints).tolist() == mine]
-        if same:                                    # the file holds one of the strategies: name it
+    mine = sorted(params.routing.segment_cases(params.n_joints).tolist())
+    for k, s in enumerate(proposed):
+        if sorted(s.params.routing.segment_cases(params.n_joints).tolist()) == mine:
+            # the file holds this strategy (up to cable order): evaluate the file's own constants
+            proposed[k] = Strategy(s.name, s.description + " (the parameter file's routing)", params)
             return proposed
     return [given] + proposed
 

@@ -6,16 +6,17 @@ in integer ns since the start of the run; every message also carries ``t`` in fl
 =================== ================================================ ==============================
 topic               fields (SI)                                      who may read it
 =================== ================================================ ==============================
-``/neck/motors``    t, theta [N+1] rad, force [N+1] N                measured (required)
+``/neck/motors``    t, theta [m] rad, force [m] N                    measured (required)
 ``/neck/camera``    t, alpha [N] rad (video, about 30 Hz)            measured
 ``/neck/reference`` t, alpha_d [N] rad                               measured
 ``/neck/estimate``  t, alpha_hat [N] rad                             measured
-``/neck/truth``     t, alpha [N], alpha_dot [N] rad/s, tension [N+1] simulation only
-                    N, elongation [N+1] m
+``/neck/truth``     t, alpha [N], alpha_dot [N] rad/s, tension [m]   simulation only
+                    N, elongation [m] m
 =================== ================================================ ==============================
 
-A metadata record ``neck`` (strings) holds the nominal constants the experimenter knows; it never
-holds friction or cable parameters.  ``NeckParams`` <-> ``neck`` record conversion lives here.
+N joints, m cables (``n_cables`` in the ``neck`` record, default N + 1; ``routing`` says which cable
+is which when it is not the paper's).  A metadata record ``neck`` (strings) holds the nominal
+constants the experimenter knows; it never holds friction or cable parameters.  ``NeckParams`` <-> ``neck`` record conversion lives here.
 """
 
 from __future__ import annotations
