@@ -16,10 +16,12 @@ and the fitted magnitude.  Prints Markdown:
 * false alarms on the noise-only controls;
 * the time of a whole diagnosis of a 60 s log on one core (``--timing-only`` or by default).
 
+The blind logs are simulated and diagnosed on a campaign executor (:mod:`controllers.campaign`):
+local worker processes (``--workers``), or a Dask cluster (``--cluster tcp://HOST:PORT``).
+
 Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5,1,2] [--workers 2]
-[--negatives 20] [--cases a,b] [--jsonl PATH] [--from-jsonl PATH] [--skip-timing]``.
-Results are appended to ``--jsonl`` as each log finishes (a long campaign can be stopped and
-reported with ``--from-jsonl``).
+[--cluster tcp://HOST:PORT] [--negatives 20] [--cases a,b] [--jsonl PATH] [--from-jsonl PATH]
+[--skip-timing]``; ``--from-jsonl`` prints the tables of a previous run.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ import os
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
@@ -52,7 +53,13 @@ def correct(expect: str, names: list) -> bool:
 
 
 def _one(job):
-    name, seed, level, directory = job
+    """One blind log, simulated and diagnosed on a campaign worker (in its own scratch directory)."""
+    with tempfile.TemporaryDirectory(prefix="neck-sim-blind-") as directory:
+        return _one_in(job, directory)
+
+
+def _one_in(job, directory):
+    name, seed, level = job
     from identification.diagnosis import DiagnosisSettings, diagnose_log
     from open_world.generator import make_spec, simulate
 
@@ -263,42 +270,41 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", default="0.25,0.5,1,2")
     ap.add_argument("--negatives", type=int, default=20, help="noise-only controls (seeds 1..K)")
     ap.add_argument("--cases", default=None, help=f"comma-separated cases (default: all of {', '.join(CASES)})")
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--jsonl", default=None, help="append each result to this file as it finishes")
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
+    ap.add_argument("--cluster", default=None, metavar="tcp://HOST:PORT", help="run on this Dask scheduler")
+    ap.add_argument("--jsonl", default=None, help="append the results to this file (one JSON line per log)")
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--from-jsonl", default=None, help="print the tables of a previous --jsonl run (no simulation)")
     ap.add_argument("--timing-only", action="store_true", help="only the 60 s timing")
     args = ap.parse_args(argv)
     if args.timing_only:
         print(timing())
+        print(story())
         return 0
     if args.from_jsonl:
         with open(args.from_jsonl) as fh:
             results = [json.loads(line) for line in fh if line.strip()]
         report(results, "from " + args.from_jsonl)
         return 0
-    from tqdm.auto import tqdm
+    from controllers.campaign import ExecutorSpec, run_campaign
 
     seeds = [int(x) for x in args.seeds.split(",")]
     levels = sorted(float(x) for x in args.levels.split(","))
     cases = [c for c in (args.cases.split(",") if args.cases else CASES) if c != "none"]
-    results = []
-    with tempfile.TemporaryDirectory() as d:
-        jobs = [("none", s, 1.0, d) for s in range(1, args.negatives + 1)]
-        jobs += [(c, s, L, d) for L in sorted(levels, reverse=True) for c in cases for s in seeds]
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(args.workers) as ex:
-            futures = [ex.submit(_one, j) for j in jobs]
-            for fut in tqdm(as_completed(futures), total=len(jobs), desc="blind diagnoses", unit="log"):
-                r = fut.result()
-                results.append(r)
-                if args.jsonl:
-                    with open(args.jsonl, "a") as fh:
-                        fh.write(json.dumps(r) + "\n")
-        wall = time.perf_counter() - t0
-    report(results, f"{wall:.0f} s with {args.workers} workers")
+    where = ExecutorSpec(workers=args.workers, cluster=args.cluster)
+    jobs = [("none", s, 1.0) for s in range(1, args.negatives + 1)]
+    jobs += [(c, s, L) for L in sorted(levels, reverse=True) for c in cases for s in seeds]
+    t0 = time.perf_counter()
+    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g}" for c, s, L in jobs],
+                           desc="blind diagnoses")
+    wall = time.perf_counter() - t0
+    if args.jsonl:
+        with open(args.jsonl, "a") as fh:
+            fh.writelines(json.dumps(r) + "\n" for r in results)
+    report(results, f"{wall:.0f} s on {where.describe()}")
     if not args.skip_timing:
         print(timing())
+        print(story())
     return 0
 
 

@@ -50,9 +50,10 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
             notes.append("run record has no plant_params: using the nominal constants of the neck record")
         else:
             params = from_dict(recorded)
-    if params.n_joints != log.params.n_joints:
-        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints but "
-                             f"the log {log.path} was recorded with N = {log.params.n_joints}")
+    if (params.n_joints, params.n_cables) != (log.params.n_joints, log.params.n_cables):
+        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints and "
+                             f"{params.n_cables} cables but the log {log.path} was recorded with N = "
+                             f"{log.params.n_joints} and {log.params.n_cables} cables")
     if changes:
         params = params.replace(**changes)
     if effects is None:
