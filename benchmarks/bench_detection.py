@@ -203,23 +203,6 @@ def timing(progress: bool = True) -> str:
         f"| ratio diagnosis / log duration (target < 1) | {t_diag / dur:.2f} |"])
 
 
-def report(results, levels, seeds, how: str) -> None:
-    neg = [r for r in results if r["case"] == "none"]
-    failed = [r for r in results if r["verdict"] == "simulation failed"]
-    print(f"# Detection power of the diagnosis\n\n{len(results)} blind logs (20.8 s each), seeds {seeds}, "
-          f"levels {levels}; {how}; diagnosis (fast path) "
-          f"{np.mean([r['t_diag'] for r in results if r['t_diag']]):.1f} s per log on average.")
-    if failed:
-        print("\nSimulations that failed (left out): " + "; ".join(f"{r['case']} seed {r['seed']} level {r['level']}"
-                                                                  for r in failed))
-    print(confusion_tables(results, levels))
-    print(limit_table(results, levels))
-    fa = [r for r in neg if r["verdict"] != "none"]
-    print(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
-          + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}" if fa else "")
-          + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.")
-
-
 def story(progress: bool = True) -> str:
     """The paper's story on the paper's own experiment: the §5.2.2 identification trajectory (85 s)
     run closed loop with control law 1 (t_min = 15 N) on the default plant, diagnosed from the
