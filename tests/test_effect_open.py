@@ -10,6 +10,7 @@ diagnosis finds it through its regressor column (a constant per cable) -- two me
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -100,6 +101,10 @@ def test_registry_refuses_bad_effects(registered):
         E.Effects(backlash=CableBias())
 
 
+def _first(verdict):
+    return verdict[0] if isinstance(verdict, list) else verdict
+
+
 def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, capsys):
     from identification.candidates import plant_model
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
@@ -110,9 +115,11 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     js, rep, ext = tmp_path / "d.json", tmp_path / "report", tmp_path / "model.json"
     assert main(["diagnose", str(path), "--steps", "1", "--json", str(js), "--report", str(rep),
                  "--extended", str(ext), "--quiet"]) == 0
-    assert "verdict: cable_bias" in capsys.readouterr().out
+    # the leader; a per-spring spring_error (a right side spring runs along the right cables) may be
+    # reported with it as a look-alike the torque block cannot tell apart
+    assert re.search(r"verdict: (cable_bias|\['cable_bias')", capsys.readouterr().out)
     finding = json.loads(js.read_text())["findings"][0]
-    assert finding["effect"] == "cable_bias" and finding["cables"] == [cable + 1]
+    assert _first(finding["effect"]) == "cable_bias" and finding["cables"] == [cable + 1]
     fitted = finding["parameters"][f"bias({cable + 1})"]
     # achieved: +11 % (seed 1), -19 % (seed 2); the bias trades off a little with the cable laws
     assert fitted["unit"] == "N" and fitted["value"] == pytest.approx(bias, rel=0.25)
@@ -126,7 +133,7 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     # another seed through the Python API, with every registered effect a candidate
     cable, bias, path = bias_logs[2]
     diag = diagnose_log(path, settings=DiagnosisSettings(max_steps=1, resimulate=False, alpha_hat=False))
-    assert diag.verdict == "cable_bias" and diag.findings[0].cables == [cable + 1]
+    assert _first(diag.verdict) == "cable_bias" and diag.findings[0].cables == [cable + 1]
     _, effects, rigid = plant_model(diag.steps[0].chosen.fit, default_params(3))
     assert not rigid and effects.cable_bias.per_cable(4)[cable] == pytest.approx(bias, rel=0.25)
 

@@ -70,6 +70,13 @@ def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> Encompa
         return EncompassingTest(a.term.name, b.term.name, None, None, False, False, str(exc))
     b_to_a = ctx.compare(a.model, both, b.added_params)
     a_to_b = ctx.compare(b.model, both, a.added_params)
+    if b_to_a.improvement < 0 and a_to_b.improvement < 0:
+        # fitted together they predict held-out data worse than either alone: collinear on these
+        # data (many-column look-alikes such as per-spring stiffness).  The leader stands when it
+        # beats the other one on held-out data by itself (improvement and Wilcoxon test)
+        head = ctx.compare(b.model, a.model, 0)
+        wins = head.improvement >= 0.5 * ctx.settings.min_improvement and head.p_holdout < ctx.settings.alpha
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, wins, False)
     # half the minimum improvement: the second effect only has to add to the first
     return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, ctx.significant(a_to_b, 0.5),
                             ctx.significant(b_to_a, 0.5))
