@@ -39,7 +39,6 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import math
 
-    from neck_sim import params as P
     from neck_sim.atomic import atomic_write_json
     from neck_sim.effects import Effects
     from neck_sim.replay import replay
