@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.computed_torque import ComputedTorqueController
+from controllers.computed_torque import ComputedTorqueController, output_slices, reference_table
 from controllers.trajectories import Trajectory
 from neck_sim.replay import plant_run_info
 
@@ -171,6 +171,7 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
     steps = int(round(trajectory.duration * rate)) + 1
     times = np.arange(steps) / rate
     ref = controller.motor_reference(trajectory.sample(times))
+    table = reference_table(ref)
 
     alpha0 = ref.alpha[0]
     if reset:
@@ -181,60 +182,57 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
     info = {**plant_run_info(plant), "trajectory": trajectory.name, "duration_s": trajectory.duration,
             "law": int(controller.law), "controller": controller.describe(), "rate_hz": rate, **(run_info or {})}
     rec = {name: np.empty((steps,) + shape) for name, shape in (
-        ("t", ()), ("alpha_hat", (n,)), ("theta", (n + 1,)), ("force", (n + 1,)), ("requested", (n + 1,)),
-        ("elongation_hat", (n + 1,)), ("gamma", (n,)), ("alpha", (n,)), ("alpha_dot", (n,)),
-        ("tension", (n + 1,)), ("elongation", (n + 1,)), ("loop_gap", ()))}
-    rec["saturated"] = np.zeros((steps, n + 1), dtype=bool)
+        ("t", ()), ("theta", (n + 1,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (n + 1,)),
+        ("elongation", (n + 1,)), ("loop_gap", ()))}
+    out = np.zeros((steps, 7 * n + 4))              # the controller writes its rows (output_slices)
     cam_t, cam_a = [], []
 
     writer = _log_writer(log_path, plant, info)
     try:
         bar = tqdm(range(steps), desc=f"{trajectory.name} law {int(controller.law)}", unit="step",
                    disable=not progress, mininterval=0.5)
+        forces = output_slices(n)["forces"]
+        step_into, plant_step, encoders, plant_truth = controller.step_into, plant.step, plant.encoders, plant.truth
+        r_t, r_theta, r_alpha, r_alpha_dot = rec["t"], rec["theta"], rec["alpha"], rec["alpha_dot"]
+        r_tension, r_elong, r_gap = rec["tension"], rec["elongation"], rec["loop_gap"]
         for k in bar:
-            t = plant.time
-            theta = plant.encoders()
-            truth = plant.truth()
+            r_t[k] = plant.time
+            r_theta[k] = theta = encoders()
+            truth = plant_truth()
             try:
-                out = controller.step(theta, ref.at(k))
+                step_into(theta, k, table, out)
             except ValueError as exc:
-                raise RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}") from exc
-            plant.step(out.forces)
+                raise RuntimeError(f"closed loop stopped at t = {r_t[k]:.3f} s: {exc}") from exc
+            plant_step(out[k, forces])
             frame = plant.camera_frame()
-
-            rec["t"][k] = t
-            rec["alpha_hat"][k] = out.alpha_hat
-            rec["theta"][k] = theta
-            rec["force"][k] = out.forces
-            rec["requested"][k] = out.requested
-            rec["saturated"][k] = out.saturated
-            rec["elongation_hat"][k] = out.elongation
-            rec["gamma"][k] = out.gamma
-            rec["alpha"][k] = truth.alpha
-            rec["alpha_dot"][k] = truth.alpha_dot
-            rec["tension"][k] = truth.tension
-            rec["elongation"][k] = truth.elongation
-            rec["loop_gap"][k] = truth.loop_gap
+            r_alpha[k] = truth.alpha
+            r_alpha_dot[k] = truth.alpha_dot
+            r_tension[k] = truth.tension
+            r_elong[k] = truth.elongation
+            r_gap[k] = truth.loop_gap
             if frame is not None:
                 cam_t.append(frame[0])
                 cam_a.append(frame[1])
-            if writer is not None:
-                writer.motors(t, theta, out.forces)
-                writer.reference(t, ref.alpha[k])
-                writer.estimate(t, out.alpha_hat)
-                writer.truth(t, truth.alpha, truth.alpha_dot, truth.tension, truth.elongation)
-                if frame is not None:
-                    writer.camera(frame[0], frame[1])
         bar.close()
+        cols = {name: out[:, sl] for name, sl in output_slices(n).items()}
+        camera_t = np.asarray(cam_t, dtype=float).reshape(-1)
+        camera_alpha = np.asarray(cam_a, dtype=float).reshape(-1, n)
+        if writer is not None:
+            t = rec["t"]
+            writer.write_batch("motors", t, rec["theta"], cols["forces"])
+            writer.write_batch("reference", t, ref.alpha)
+            writer.write_batch("estimate", t, cols["alpha_hat"])
+            writer.write_batch("truth", t, rec["alpha"], rec["alpha_dot"], rec["tension"], rec["elongation"])
+            writer.write_batch("camera", camera_t, camera_alpha)
     except BaseException:
         if writer is not None:
             writer.abort()
         raise
     if writer is not None:
         writer.close()
+    rec.update(alpha_hat=cols["alpha_hat"], force=cols["forces"], requested=cols["requested"],
+               saturated=cols["saturated"] > 0.5, elongation_hat=cols["elongation"], gamma=cols["gamma"])
 
-    camera_t = np.asarray(cam_t, dtype=float).reshape(-1)
-    camera_alpha = np.asarray(cam_a, dtype=float).reshape(-1, n)
     metrics = compute_metrics(rec["t"], ref.alpha, rec["alpha_hat"], rec["alpha"], rec["tension"], rec["force"],
                               rec["saturated"], camera_t, camera_alpha)
     return RunResult(alpha_d=ref.alpha, camera_t=camera_t, camera_alpha=camera_alpha, metrics=metrics, info=info,
