@@ -272,10 +272,28 @@ class ControllerState:
         self.linkage = np.stack([linkage_constants(c.params) for c in ctrls])
         self.Z = np.zeros((len(ctrls), n, n + 1))
         self.status = np.zeros(len(ctrls), dtype=np.int64)
+        self.params = [c.params for c in ctrls]
+        self._group()
+
+    def _group(self) -> None:
         groups: dict = {}                  # controllers sharing a geometry share one batched Z call
-        for i, c in enumerate(ctrls):
-            groups.setdefault(c.params.geometry, (c.params, []))[1].append(i)
+        for i, p in enumerate(self.params):
+            groups.setdefault(p.geometry, (p, []))[1].append(i)
         self.geometry_groups = [(p, np.array(rows)) for p, rows in groups.values()]
+
+    @classmethod
+    def stack(cls, states) -> "ControllerState":
+        """One state of the controllers of several states, in order (arrays copied)."""
+        states = list(states)
+        if any(s.n != states[0].n for s in states):
+            raise ValueError("controllers: every controller of a batch must have the same number of joints")
+        out = cls.__new__(cls)
+        out.n = states[0].n
+        for name in ("values", "flags", "const", "cables", "linkage", "Z", "status"):
+            setattr(out, name, np.concatenate([getattr(s, name) for s in states]))
+        out.params = [p for s in states for p in s.params]
+        out._group()
+        return out
 
     def update_z(self) -> None:
         """Z at every controller's current estimate."""

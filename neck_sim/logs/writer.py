@@ -34,7 +34,6 @@ from neck_sim.params import NeckParams, default_params
 __all__ = ["LogWriter", "MJCF_ATTACHMENT"]
 
 MJCF_ATTACHMENT = "neck.xml"
-_DUMPS = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 _PENDING_ROWS = 256          # samples buffered by the per-sample methods before encoding
 _MESSAGE_HEADER = 31         # opcode (1) + record length (8) + channel, sequence, log and publish time (22)
 
@@ -401,5 +400,5 @@ class LogWriter:
                     ch = self._channel(topic, "foxglove.FrameTransforms", foxglove.FRAME_TRANSFORMS_SCHEMA)
                 else:
                     ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
-                self._writer.add_message(ch, ns, _DUMPS(msg).encode(), ns)
+                self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON, as json.dumps(separators=(',', ':'))
                 self.counts[topic] += 1
