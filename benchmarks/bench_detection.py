@@ -34,7 +34,7 @@ import numpy as np
 def _one(job):
     name, seed, level, directory = job
     from identification.blind import MAGNITUDES, make_case
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
 
     path = os.path.join(directory, f"{name.replace(':', '_')}_{seed}_{level}.mcap")
     t0 = time.perf_counter()
@@ -143,7 +143,7 @@ def limit_table(results, levels) -> str:
 def timing(progress: bool = True) -> str:
     """Whole diagnosis of a 60 s log on one core, and the paper's identification of the same log."""
     from identification.blind import excitation_trajectory, hidden_effect, run_log
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
     from identification.paper import identify_log
     from neck_sim.logs import read_log
 
@@ -203,7 +203,7 @@ def story(progress: bool = True) -> str:
     from controllers.closed_loop import run_closed_loop
     from controllers.computed_torque import ComputedTorqueController
     from controllers.trajectories import identification_trajectory
-    from identification.discovery import DiagnosisSettings, diagnose_log
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
     from neck_sim.params import default_params
     from neck_sim.plant import Plant
 

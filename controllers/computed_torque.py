@@ -30,12 +30,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from controllers.estimators import CableModel, ElongationEstimator, elongation_update, estimated_tension
+from controllers.estimators import CableModel, ElongationEstimator, estimated_tension
 from controllers.tension import (TensionInfeasibleError, distribute_kernel, infeasible_message,
                                  tension_lower_bounds)
 from controllers.trajectories import TrajectorySample
-from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
-from neck_sim.analytic.dynamics import arctan_friction, linkage_constants, linkage_kernel, motor_friction
+from neck_sim.analytic.cables import cable_kinematics, transmission_kernel, transmission_matrix
+from neck_sim.analytic.dynamics import (_euler_elongation, _stiffness, arctan_friction, linkage_constants,
+                                       linkage_kernel, motor_friction)
 from neck_sim.analytic.estimation import UnreachableError, pinv_increment_kernel
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.jit import kernel
@@ -119,7 +120,8 @@ _KP, _KV, _KI, _DT, _IA, _FMAX, _AMAX, _RATIO, _ELASTIC = range(9)
 # Status codes of the kernels (0: done).
 _SINGULAR_ESTIMATE, _NOT_FINITE, _OUTSIDE, _TENSION = 1, 2, 100, 1000
 # the compiled twins of the numpy formulas (numba resolves module globals, not attributes)
-_friction, _tension_hat, _elongation = arctan_friction.jit, estimated_tension.jit, elongation_update.jit
+_friction, _tension_hat = arctan_friction.jit, estimated_tension.jit
+_stiff, _euler = _stiffness.jit, _euler_elongation.jit
 
 
 def output_slices(n: int) -> dict[str, slice]:
@@ -152,7 +154,7 @@ def _estimate_and_pid(theta, k, st, flags, const, cab, Z, ref, out) -> int:
             for j in range(n + 1):
                 fr = _friction(st[_THETA_DOT_PREV, j], cab[4, 0], cab[3, j])
                 t_hat = _tension_hat(st[_FORCE_PREV, j], fr)
-                x_new = _elongation(st[_X, j], t_hat, cab[0, j], cab[1, j], cab[2, j], cab[4, 1])
+                x_new = _euler(st[_X, j], t_hat, cab[4, 1], cab[2, j], _stiff(t_hat, cab[0, j], cab[1, j]))
                 rhs[j] -= x_new - st[_X, j]
                 st[_X, j] = x_new
         inc = np.empty(n)
@@ -222,19 +224,21 @@ def _torque_and_tensions(k, st, flags, const, lk, Z, ref, out) -> int:
 
 
 @kernel
-def estimate_and_pid_rows(theta, k, st, flags, const, cab, Z, ref, out, status) -> None:
-    """:func:`_estimate_and_pid` for K controllers (leading axis of every argument but ``k``)."""
+def control_rows(theta, k, st, flags, const, cab, lk, geometry, cases, Z, ref, out, status) -> None:
+    """One control period of K controllers (leading axis of every argument but ``k``).
+
+    Per controller: eq (35) with Z of the previous estimate, eq (59), Z at the new estimate
+    (``transmission_kernel``, geometry (b, L, r), routing cases (m, N)), eqs (24), (66), (63)-(65).
+    Rows with a non-zero status are skipped; a failing row sets its status.
+    """
     for r in range(theta.shape[0]):
-        if status[r] == 0:
-            status[r] = _estimate_and_pid(theta[r], k, st[r], flags[r], const[r], cab[r], Z[r], ref[r], out[r])
-
-
-@kernel
-def torque_and_tensions_rows(k, st, flags, const, lk, Z, ref, out, status) -> None:
-    """:func:`_torque_and_tensions` for K controllers; rows with a non-zero status are skipped."""
-    for r in range(st.shape[0]):
-        if status[r] == 0:
-            status[r] = _torque_and_tensions(k, st[r], flags[r], const[r], lk[r], Z[r], ref[r], out[r])
+        if status[r] != 0:
+            continue
+        status[r] = _estimate_and_pid(theta[r], k, st[r], flags[r], const[r], cab[r], Z[r], ref[r], out[r])
+        if status[r] != 0:
+            continue
+        transmission_kernel(st[r, _ALPHA_HAT, : Z.shape[1]], geometry[r], cases[r], Z[r])
+        status[r] = _torque_and_tensions(k, st[r], flags[r], const[r], lk[r], Z[r], ref[r], out[r])
 
 
 def step_error(status: int, alpha_hat: np.ndarray, alpha_max: float) -> ValueError:
@@ -256,7 +260,8 @@ class ControllerState:
 
     values (K, 7, N+1), flags (K, 2) int (encoder read once, a force commanded once), const
     (K, 9), cables (K, 5, N+1) the eq-58 coefficients, linkage (K, 7 + N) the model's linkage
-    constants, Z (K, N, N+1) Z at the current estimate, status (K,) int.
+    constants, geometry (K, 3) b, L, r, cases (K, N+1, N) the routing, Z (K, N, N+1) Z at the
+    current estimate, status (K,) int.
     """
 
     def __init__(self, controllers):
@@ -270,16 +275,10 @@ class ControllerState:
         self.const = np.stack([c._constants() for c in ctrls])
         self.cables = np.stack([c._cable_constants() for c in ctrls])
         self.linkage = np.stack([linkage_constants(c.params) for c in ctrls])
+        self.geometry = np.array([[c.params.geometry.b, c.params.geometry.L, c.params.geometry.r] for c in ctrls])
+        self.cases = np.stack([c.params.routing.segment_cases(n) for c in ctrls]).astype(np.int64)
         self.Z = np.zeros((len(ctrls), n, n + 1))
         self.status = np.zeros(len(ctrls), dtype=np.int64)
-        self.params = [c.params for c in ctrls]
-        self._group()
-
-    def _group(self) -> None:
-        groups: dict = {}                  # controllers sharing a geometry share one batched Z call
-        for i, p in enumerate(self.params):
-            groups.setdefault(p.geometry, (p, []))[1].append(i)
-        self.geometry_groups = [(p, np.array(rows)) for p, rows in groups.values()]
 
     @classmethod
     def stack(cls, states) -> "ControllerState":
@@ -289,20 +288,9 @@ class ControllerState:
             raise ValueError("controllers: every controller of a batch must have the same number of joints")
         out = cls.__new__(cls)
         out.n = states[0].n
-        for name in ("values", "flags", "const", "cables", "linkage", "Z", "status"):
+        for name in ("values", "flags", "const", "cables", "linkage", "geometry", "cases", "Z", "status"):
             setattr(out, name, np.concatenate([getattr(s, name) for s in states]))
-        out.params = [p for s in states for p in s.params]
-        out._group()
         return out
-
-    def update_z(self) -> None:
-        """Z at every controller's current estimate."""
-        ah = self.values[:, _ALPHA_HAT, : self.n]
-        if len(self.geometry_groups) == 1:
-            self.Z[:] = transmission_matrix(ah, self.geometry_groups[0][0])
-        else:
-            for params, rows in self.geometry_groups:
-                self.Z[rows] = transmission_matrix(ah[rows], params)
 
 
 
@@ -311,11 +299,8 @@ def advance(state: ControllerState, theta: np.ndarray, k: int, ref: np.ndarray, 
 
     Controllers whose status is not 0 are left alone (their status says why they stopped).
     """
-    estimate_and_pid_rows(theta, k, state.values, state.flags, state.const, state.cables, state.Z, ref, out,
-                          state.status)
-    state.update_z()
-    torque_and_tensions_rows(k, state.values, state.flags, state.const, state.linkage, state.Z, ref, out,
-                             state.status)
+    control_rows(theta, k, state.values, state.flags, state.const, state.cables, state.linkage, state.geometry,
+                 state.cases, state.Z, ref, out, state.status)
 
 
 class ComputedTorqueController:
@@ -343,6 +328,9 @@ class ComputedTorqueController:
             raise ValueError(f"law: expected 1, 2 or 3 (the tests of §6.3), got {law!r}") from None
         p = self.params
         n = p.n_joints
+        if p.n_cables != n + 1:
+            raise ValueError(f"params: the tension distribution of eqs (63)-(65) needs N + 1 = {n + 1} cables, "
+                             f"the routing has {p.n_cables}")
         self.cable_model = self.law.default_cable_model if cable_model is None else CableModel(cable_model)
         paper = default_params(n)
         self.f_s = np.asarray(paper.friction.f_s if f_s is None else f_s, dtype=float)
@@ -406,7 +394,7 @@ class ComputedTorqueController:
         if theta0 is not None:
             st.values[0, _THETA_PREV] = check_cables(theta0, n + 1, "theta0")
             st.flags[0, 0] = 1
-        st.update_z()
+        st.Z[0] = transmission_matrix(st.values[0, _ALPHA_HAT, :n], p)
 
     @property
     def alpha_hat(self) -> np.ndarray:

@@ -30,13 +30,13 @@ from enum import Enum
 
 import numpy as np
 
-from neck_sim.analytic.dynamics import arctan_friction
+from neck_sim.analytic.dynamics import arctan_friction, elongation_step
 from neck_sim.analytic.estimation import pinv_increment
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.jit import dual
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["CableModel", "estimated_tension", "elongation_update", "ElongationEstimator", "JointAngleEstimator"]
+__all__ = ["CableModel", "estimated_tension", "ElongationEstimator", "JointAngleEstimator"]
 
 
 class CableModel(str, Enum):
@@ -65,12 +65,6 @@ def _per_cable(value, n_cables: int, name: str) -> np.ndarray:
 def estimated_tension(force, friction):
     """t_hat = max(f - friction, 0) (N): the commanded force less the believed friction; a cable cannot push."""
     return np.maximum(force - friction, 0.0)
-
-
-@dual
-def elongation_update(x, t_hat, k, lam, c_a, dt):
-    """Eq (58), one explicit Euler step of eq (54): x + dt / c_a (t_hat - (k + lam t_hat) x), m."""
-    return x + dt / c_a * (t_hat - (k + lam * t_hat) * x)
 
 
 class ElongationEstimator:
@@ -126,7 +120,7 @@ class ElongationEstimator:
 
     def step(self, force, theta_dot) -> np.ndarray:
         """Advance one period with the force (N+1,) N applied during it and the motor speed (rad/s)."""
-        self.x = elongation_update(self.x, self.tension(force, theta_dot), self.k, self.lam, self.c_a, self.dt)
+        self.x = elongation_step(self.x, self.tension(force, theta_dot), self.dt, self.k, self.lam, self.c_a)
         return self.x
 
     def constants(self) -> np.ndarray:

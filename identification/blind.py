@@ -1,7 +1,7 @@
 """Blind tests of the diagnosis: plant logs with a hidden effect drawn from a seed.
 
 A blind test hides one effect of the vocabulary (:mod:`neck_sim.effects`) in the simulated plant,
-writes a contract log, and lets :func:`identification.discovery.diagnose` find it without being
+writes a contract log, and lets :func:`identification.diagnosis.diagnose` find it without being
 told.  This module makes those logs quickly:
 
 * :func:`excitation_trajectory` -- the §5.2.2 identification shape (sequences of six cycloidal
@@ -35,12 +35,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from neck_sim.effects import (ActuationDelay, DryFriction, Effects, Payload, PulleyFriction, Pretension,
-                              SpringError, StribeckFriction, TensionStiffening, ViscousFriction, CableElasticity)
+from neck_sim import effects as effect_registry
+from neck_sim.effects import NONE, Effects
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["excitation_trajectory", "ServoGains", "run_log", "BlindCase", "hidden_effect", "CASES", "MAGNITUDES",
-           "make_case"]
+__all__ = ["excitation_trajectory", "ServoGains", "run_log", "BlindCase", "hidden_effect", "blind_forms", "CASES",
+           "MAGNITUDES", "make_case"]
 
 
 def excitation_trajectory(params: NeckParams, sequences: int = 3, move_time: float = 0.9, hold_time: float = 0.25,
@@ -140,20 +140,16 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
 
 # ------------------------------------------------------------------------------------- hidden effects
 
-#: Test magnitudes per effect (the "medium" level); the detection benchmark scales them.
-MAGNITUDES = {
-    "dry_friction": 12.0,            # N, f_s on one cable (baseline without friction)
-    "dry_friction:tanh": 12.0,       # N, the same with a tanh-smoothed sign
-    "viscous_friction": 0.15,        # N s/rad at the motor shaft
-    "stribeck_friction": 8.0,        # N of extra breakaway friction
-    "pulley_friction": 0.15,         # fraction of the tension
-    "cable_elasticity": 1.0,         # scale of the paper's stiffness (baseline with rigid cables)
-    "tension_stiffening": 1.0,       # scale of the paper's lambda (baseline with linear cables)
-    "payload": 0.08,                 # kg at the head
-    "spring_error": 0.5,             # relative stiffness error on one joint
-    "actuation_delay": 0.010,        # s
-    "pretension": 1.5e-3,            # m on one cable
-}
+def blind_forms() -> dict:
+    """Blind case name -> (effect class, test magnitude, hide function) over the registry, in
+    report order (an effect may have several forms, e.g. ``dry_friction:tanh``)."""
+    return {case: (cls, mag, hide) for cls in effect_registry.registered()
+            for case, (mag, hide) in cls.blind_forms().items()}
+
+
+#: Test magnitudes per blind case (the "medium" level) of the built-in vocabulary; the detection
+#: benchmark scales them.  Defined by each effect's module (``blind_magnitude``).
+MAGNITUDES = {case: mag for case, (_, mag, _) in blind_forms().items()}
 
 
 @dataclass(frozen=True)
@@ -161,7 +157,7 @@ class BlindCase:
     """A plant with one hidden effect and the model the diagnosis starts from.
 
     ``params`` the plant's constants, ``effects`` its hidden effects, ``model`` the baseline
-    structure for :func:`identification.discovery.diagnose` (component names), ``expect`` the
+    structure for :func:`identification.diagnosis.diagnose` (component names), ``expect`` the
     effect a correct diagnosis names, ``cables``/``joints`` where it was hidden (0-based).
     """
 
@@ -177,90 +173,42 @@ class BlindCase:
     info: dict = field(default_factory=dict)
 
 
-PAPER_MODEL = ("dry_friction", "cable_elasticity", "tension_stiffening")
+def baseline_without(name: str) -> tuple[str, ...]:
+    """The paper's model without effect ``name`` and what requires it (the model a blind test of
+    an effect of the paper's own model starts from)."""
+    drop = {name}
+    for cls in effect_registry.registered():
+        if drop & set(cls.requires):
+            drop.add(cls.name)
+    return tuple(n for n in effect_registry.paper_model() if n not in drop)
 
 
 def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams | None = None) -> BlindCase:
-    """The blind case for effect ``name``: magnitude ``level`` x :data:`MAGNITUDES` times a factor
-    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``.
+    """The blind case ``name``: magnitude ``level`` x the effect's test magnitude times a factor
+    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``; the effect's own module
+    says how to hide it (:meth:`neck_sim.effects.Effect.hide`).
 
     The hidden forms differ from the candidates' on purpose (see the module docstring).
     """
     p = default_params(3) if params is None else params
-    n1 = p.n_cables
+    forms = blind_forms()
+    if name != NONE and name not in forms:
+        raise ValueError(f"unknown blind case {name!r} (known: {', '.join((NONE,) + tuple(forms))})")
     rng = np.random.default_rng([seed, sum(map(ord, name))])
-    mag = MAGNITUDES.get(name, 0.0) * level * float(np.exp(rng.uniform(np.log(0.8), np.log(1.25))))
-    cable = int(rng.integers(n1))
+    nominal = forms[name][1] if name in forms else 0.0
+    mag = nominal * level * float(np.exp(rng.uniform(np.log(0.8), np.log(1.25))))
+    cable = int(rng.integers(p.n_cables))
     joint = int(rng.integers(p.n_joints))
-    model = PAPER_MODEL
-    cables: tuple = (cable,)
-    joints: tuple = ()
-    if name == "none":
-        return BlindCase(name, p, Effects(), model, "none", (), (), 0.0, "no hidden effect (noise only)")
-    if name == "dry_friction:tanh":
-        # a tanh-smoothed sign (the plant's Stribeck term with an infinite Stribeck speed), one cable
-        smooth = float(rng.uniform(0.2, 1.0))
-        plant = p.replace(**{"friction.f_s": (0.0,) * n1})
-        eff = Effects(stribeck_friction=StribeckFriction(df=mag, speed=1e6, smoothing=smooth, cables=(cable,)))
-        desc = f"dry friction {mag:.2f} N with a tanh sign (smoothing {smooth:.2f} rad/s) on cable {cable + 1} only"
-        return BlindCase(name, plant, eff, ("cable_elasticity", "tension_stiffening"), "dry_friction", cables, (),
-                         mag, desc)
-    if name == "dry_friction":
-        # a sharper sign than eq (37)'s c_s = 0.5, on one cable only, against a friction-free model
-        cs = float(rng.uniform(2.0, 6.0))
-        plant = p.replace(**{"friction.f_s": (0.0,) * n1})
-        eff = Effects(dry_friction=DryFriction(f_s=mag, c_s=cs, cables=(cable,)))
-        desc = f"dry friction {mag:.2f} N, c_s = {cs:.2f} s/rad, on cable {cable + 1} only"
-        return BlindCase(name, plant, eff, ("cable_elasticity", "tension_stiffening"), name, cables, (), mag, desc)
-    if name == "viscous_friction":
-        eff = Effects(viscous_friction=ViscousFriction(c_v=mag, cables=(cable,)))
-        desc = f"viscous friction {mag:.3f} N s/rad on cable {cable + 1}"
-    elif name == "stribeck_friction":
-        speed = float(rng.uniform(2.5, 7.0))
-        smooth = float(rng.uniform(0.2, 0.8))
-        eff = Effects(stribeck_friction=StribeckFriction(df=mag, speed=speed, smoothing=smooth, cables=(cable,)))
-        desc = f"Stribeck friction +{mag:.2f} N, speed {speed:.2f} rad/s, smoothing {smooth:.2f} rad/s, cable {cable + 1}"
-    elif name == "pulley_friction":
-        c = float(rng.uniform(1.0, 3.0))
-        eff = Effects(pulley_friction=PulleyFriction(mu=mag, c=c, cables=(cable,)))
-        desc = f"pulley friction mu = {mag:.3f}, c = {c:.2f} s/rad, cable {cable + 1}"
-    elif name == "cable_elasticity":
-        k = tuple(np.asarray(p.cables.k) * mag)
-        eff = Effects(cable_elasticity=CableElasticity(k=k))
-        desc = f"elastic cables, k = {mag:.2f} x Table 2"
-        return BlindCase(name, p, eff, ("dry_friction",), name, tuple(range(n1)), (), mag, desc)
-    elif name == "tension_stiffening":
-        lam = tuple(np.asarray(p.cables.lam) * mag)
-        eff = Effects(tension_stiffening=TensionStiffening(lam=lam))
-        desc = f"tension stiffening, lambda = {mag:.2f} x Table 2"
-        return BlindCase(name, p, eff, ("dry_friction", "cable_elasticity"), name, tuple(range(n1)), (), mag, desc)
-    elif name == "payload":
-        eff = Effects(payload=Payload(mass=mag))
-        cables = ()
-        desc = f"payload {1e3 * mag:.0f} g at the head"
-    elif name == "spring_error":
-        scale = 1.0 + mag * (1 if rng.random() < 0.5 else -1)
-        eff = Effects(spring_error=SpringError(stiffness_scale=scale, joints=(joint,)))
-        cables, joints = (), (joint,)
-        desc = f"side springs of joint {joint + 1} x {scale:.2f}"
-    elif name == "actuation_delay":
-        eff = Effects(actuation_delay=ActuationDelay(delay=mag))
-        cables = ()
-        desc = f"actuation delay {1e3 * mag:.1f} ms"
-    elif name == "pretension":
-        # on a right cable: the long left cable is soft and stiffens strongly (lambda x_0 ~ 0.2), so
-        # its k and lambda absorb an offset of a few mm within the noise (see the detection benchmark)
-        cable = int(rng.integers(n1 - 1))
-        cables = (cable,)
-        eff = Effects(pretension=Pretension(elongation=mag, cables=(cable,)))
-        desc = f"pretension {1e3 * mag:.2f} mm on cable {cable + 1}"
-    else:
-        raise ValueError(f"unknown blind case {name!r} (known: {', '.join(CASES)})")
-    return BlindCase(name, p, eff, model, name, cables, joints, mag, desc)
+    if name == NONE:
+        return BlindCase(name, p, Effects(), effect_registry.paper_model(), NONE, (), (), 0.0,
+                         "no hidden effect (noise only)")
+    h = forms[name][2](p, rng, mag, cable, joint)
+    return BlindCase(name, h.params, Effects.of(*h.effects), baseline_without(h.expect), h.expect, h.cables, h.joints,
+                     mag, h.description)
 
 
 #: Every blind case: the noise-only control, then one per effect (and per variant form).
-CASES = ("none",) + tuple(MAGNITUDES)
+CASES = (NONE,) + tuple(MAGNITUDES)
 
 
 def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None, progress: bool = False,

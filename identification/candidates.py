@@ -42,7 +42,11 @@ tension estimate, iterated to convergence (three passes).
 control periods), d found by a 1-D search.  **Pretension** shifts the elongation of each cable by
 its rest elongation x_0 (eq 54 with x_c + x_0): with k, lambda free the offset is nearly
 collinear with them (a linear offset column lets the fit run to negative stiffness), so x_0 is a
-bounded shape parameter per cable, searched on [-1, 3] mm.
+bounded shape parameter per cable, searched on
+:data:`neck_sim.effects.PRETENSION_RANGE` ([-1, 5] mm).
+
+Every effect-specific piece (columns, shapes, prerequisites, the map back to the plant) lives in
+the effect's own module of :mod:`neck_sim.effects`; this module only loops over a model's terms.
 
 Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad, ``df(i)`` N,
 ``mu(i)``, ``k(i)`` N/m, ``c_a(i)`` N s/m, ``lambda(i)`` 1/m, ``payload`` kg,
@@ -53,40 +57,51 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic import linkage_dynamics, side_lengths, transmission_matrix
-from neck_sim.effects import (VOCABULARY, ActuationDelay, Effects, Pretension, PulleyFriction, StribeckFriction,
-                              ViscousFriction)
+from neck_sim import effects as effect_registry
+from neck_sim.analytic import linkage_dynamics, transmission_matrix
+from neck_sim.effects import Effect, Effects
 from neck_sim.params import NeckParams
 
 from identification import regressors as reg
 from identification.least_squares import solve_weighted
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, decimate, lowpass, prepare
 
-__all__ = ["EFFECTS", "REQUIRES", "SHAPE_GRIDS", "PAPER_MODEL", "Term", "ModelSpec", "MeasuredData", "FitState",
-           "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets"]
+__all__ = ["effect_names", "shape_grid", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
+           "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "EFFECTS", "REQUIRES",
+           "SHAPE_GRIDS", "PAPER_MODEL"]
 
-#: Candidate effects in report order (the vocabulary without ``none``).
-EFFECTS = tuple(n for n in VOCABULARY if n != "none")
 
-#: An effect that only makes sense on top of another one.
-REQUIRES = {"stribeck_friction": "dry_friction",      # a breakaway bump on top of dry friction
-            "tension_stiffening": "cable_elasticity",
-            "pretension": "cable_elasticity"}
+def effect_names() -> tuple[str, ...]:
+    """Candidate effects in report order: every registered effect (the vocabulary without ``none``)."""
+    return effect_registry.names()
 
-#: Grids of the nonlinear shape parameters searched inside each candidate's fit.
-SHAPE_GRIDS = {
-    "dry_friction": {"c_s": (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)},                   # s/rad, eq (37)
-    "stribeck_friction": {"speed": (1.5, 3.0, 6.0, 12.0), "smoothing": (0.15, 0.5, 1.5)},   # rad/s
-    "pulley_friction": {"c": (0.5, 2.0, 8.0)},                                  # s/rad
-    "actuation_delay": {"delay": (0.002, 0.005, 0.010, 0.020, 0.040)},          # s, refined by golden section
-}
 
-PAPER_MODEL = ("dry_friction", "cable_elasticity", "tension_stiffening")
+def paper_model() -> tuple[str, ...]:
+    """The paper's model: arctan friction + variable-stiffness cables."""
+    return effect_registry.paper_model()
 
-_MOTOR_TERMS = ("dry_friction", "viscous_friction", "stribeck_friction", "pulley_friction")
+
+def shape_grid(name: str) -> dict[str, tuple]:
+    """Shape parameter -> the grid a candidate ``name`` is tried at (searched shapes only)."""
+    return {sh.name: tuple(sh.grid) for sh in effect_registry.get(name).shapes if sh.grid}
+
+
+def __getattr__(name: str):
+    # views of the registry under their former names, computed when asked (so they include effects
+    # registered later)
+    if name == "EFFECTS":
+        return effect_names()
+    if name == "PAPER_MODEL":
+        return paper_model()
+    if name == "REQUIRES":
+        return {c.name: c.requires[0] for c in effect_registry.registered() if c.requires}
+    if name == "SHAPE_GRIDS":
+        return {c.name: shape_grid(c.name) for c in effect_registry.registered() if shape_grid(c.name)}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -98,9 +113,13 @@ class Term:
     shape: tuple = ()
 
     def __post_init__(self):
-        if self.name not in EFFECTS:
-            raise ValueError(f"unknown effect {self.name!r} (known: {', '.join(EFFECTS)})")
+        effect_registry.get(self.name)
         object.__setattr__(self, "shape", tuple(sorted((str(k), float(v)) for k, v in dict(self.shape).items())))
+
+    @property
+    def effect(self) -> type[Effect]:
+        """The effect class of :mod:`neck_sim.effects`."""
+        return effect_registry.get(self.name)
 
     def get(self, key: str, default: float | None = None) -> float | None:
         return dict(self.shape).get(key, default)
@@ -122,15 +141,15 @@ class ModelSpec:
         if len(set(names)) != len(names):
             raise ValueError(f"model: an effect appears twice in {names}")
         for t in self.terms:
-            need = REQUIRES.get(t.name)
-            if need and need not in names:
-                raise ValueError(f"model: {t.name} needs {need} in the model")
+            for need in t.effect.requires:
+                if need not in names:
+                    raise ValueError(f"model: {t.name} needs {need} in the model")
 
     @classmethod
     def of(cls, *names_or_terms) -> "ModelSpec":
         terms = []
         for x in names_or_terms:
-            terms.append(x if isinstance(x, Term) else Term(x, _default_shape(x)))
+            terms.append(x if isinstance(x, Term) else Term(x, effect_registry.get(x).default_shape()))
         return cls(tuple(terms))
 
     @property
@@ -145,7 +164,8 @@ class ModelSpec:
 
     @property
     def elastic(self) -> bool:
-        return self.has("cable_elasticity")
+        """Elastic cables (eq 54) when a term makes them so; else rigid (eq 25)."""
+        return any(t.effect.elastic_cables for t in self.terms)
 
     def plus(self, term: Term) -> "ModelSpec":
         return ModelSpec(self.terms + (term,))
@@ -166,7 +186,7 @@ class ModelSpec:
         terms = []
         for it in items:
             if isinstance(it, str):
-                terms.append(Term(it, _default_shape(it)))
+                terms.append(Term(it, effect_registry.get(it).default_shape()))
                 continue
             d = dict(it)
             name = d.pop("effect", None)
@@ -174,19 +194,6 @@ class ModelSpec:
                 raise ValueError(f"model: a term without 'effect': {it!r}")
             terms.append(Term(name, d))
         return cls(tuple(terms))
-
-
-def _default_shape(name: str) -> tuple:
-    """The shape a term takes when named without one (the paper's c_s for dry friction)."""
-    if name == "dry_friction":
-        return (("c_s", 0.5),)
-    if name == "stribeck_friction":
-        return (("speed", 6.0), ("smoothing", 0.5))
-    if name == "pulley_friction":
-        return (("c", 0.5),)
-    if name == "actuation_delay":
-        return (("delay", 0.005),)
-    return ()
 
 
 # ---------------------------------------------------------------------------------------- data
@@ -229,16 +236,6 @@ class MeasuredData:
         self.x = prep.x_c
         self.x_dot = prep.x_c_dot
         self.theta_dot = prep.theta_dot
-        # linkage regressors: a unit payload, unit spring stiffness per joint, unit rest-length change
-        unit = params.replace(**{"inertia.payload_mass": 1.0})
-        lk1 = linkage_dynamics(prep.alpha, prep.alpha_dot, unit)
-        self.payload_torque = (np.einsum("sij,sj->si", lk1.M - lk.M, prep.alpha_ddot) + (lk1.c - lk.c)
-                               + (lk1.g - lk.g))
-        sd = side_lengths(prep.alpha, params)
-        l0 = params.springs.rest_length
-        # per N/m of joint j's side springs.  A rest-length error is not a separate regressor: over
-        # the workspace -k (dl_l + dl_r) is nearly proportional to this column (both odd in alpha).
-        self.spring_torque = (sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r            # (S, N)
         self._y_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._col_cache: dict = {}
         y_fast, y = self.observations(0.0)
@@ -314,30 +311,29 @@ class MeasuredData:
         """y_T = Z y_C - M_m alpha_ddot - c_m - g, (S, N) N m."""
         return np.einsum("sij,sj->si", self.Z, y_slow) - self.linkage
 
-    def motor_basis(self, term: Term, tension_fast: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(fast (T, C), slow (S, C)) motor-side force per unit parameter of a motor term."""
-        w = self.theta_dot_fast
-        name = term.name
-        cacheable = name != "pulley_friction"
-        key = (name, term.shape)
-        if cacheable and key in self._col_cache:
-            return self._col_cache[key]
-        if name == "dry_friction":
-            fast = (2 / np.pi) * np.arctan(term.get("c_s") * w)
-        elif name == "viscous_friction":
-            fast = w
-        elif name == "stribeck_friction":
-            fast = StribeckFriction(df=1.0, speed=term.get("speed"), smoothing=term.get("smoothing")).regressor(w)
-        elif name == "pulley_friction":
-            if tension_fast is None:
-                raise ValueError("pulley_friction: needs a tension estimate")
-            fast = PulleyFriction(mu=1.0, c=term.get("c")).regressor(w, np.maximum(tension_fast, 0.0))
-        else:
-            raise ValueError(f"{name}: not a motor-side effect")
-        out = (fast, self.to_slow(fast))
-        if cacheable:
-            self._col_cache[key] = out
-        return out
+    def cached(self, key, compute):
+        """``compute()`` once per ``key`` for this log (regressor columns that do not depend on the fit)."""
+        if key not in self._col_cache:
+            self._col_cache[key] = compute()
+        return self._col_cache[key]
+
+    def motor_basis(self, effect: type, shape: dict, tension_fast: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(fast (T, C), slow (S, C)) force per unit magnitude of the motor-side ``effect`` class
+        with ``shape``: its regressor on the encoders' speed (and the tension estimate, clipped at
+        0, when it needs one), through the observations' filter chain."""
+        def compute():
+            t = None
+            if effect.uses_tension:
+                if tension_fast is None:
+                    raise ValueError(f"{effect.name}: needs a tension estimate")
+                t = np.maximum(tension_fast, 0.0)
+            fast = effect.unit(shape).regressor(self.theta_dot_fast, t)
+            return fast, self.to_slow(fast)
+
+        if effect.uses_tension:             # changes with every pass of the fit
+            return compute()
+        return self.cached((effect.name, tuple(sorted(shape.items()))), compute)
 
     @classmethod
     def from_log(cls, log, params: NeckParams | None = None, settings: PreprocessSettings | None = None,
@@ -401,24 +397,23 @@ class Fit:
         return np.concatenate([self.torque, self.cable], axis=1)
 
 
-def _cable_names(symbol: str, C: int) -> tuple:
-    return tuple(f"{symbol}({i + 1})" for i in range(C))
+class FitContext(NamedTuple):
+    """What an effect's ``design`` may use besides the data, for one pass of a fit: elongations
+    ``x`` (S, C) m with the model's rest elongations, tension estimates ``tension_fast`` (T, C) and
+    ``tension`` (S, C) N from the previous pass."""
 
-
-_SYMBOLS = {"dry_friction": ("f_s", "N"), "viscous_friction": ("c_v", "N s/rad"), "stribeck_friction": ("df", "N"),
-            "pulley_friction": ("mu", "-"), "tension_stiffening": ("lambda", "1/m")}
+    x: np.ndarray
+    tension_fast: np.ndarray
+    tension: np.ndarray
 
 
 def pretension_offsets(model: "ModelSpec", n_cables: int) -> np.ndarray:
-    """(C,) m: the elongation at rest x_0 of each cable (shape ``x0_<i>`` of ``pretension``, 1-based),
-    zeros without the term.  The cable law then uses x_c + x_0 (the encoders were zeroed with the
-    cables already stretched)."""
+    """(C,) m: the elongation at rest x_0 of each cable the model's terms impose (pretension),
+    zeros without such a term.  The cable law then uses x_c + x_0 (the encoders were zeroed with
+    the cables already stretched)."""
     out = np.zeros(n_cables)
-    term = model.term("pretension")
-    if term is not None:
-        for key, v in term.shape:
-            if key.startswith("x0_"):
-                out[int(key[3:]) - 1] = v
+    for t in model.terms:
+        out = out + t.effect.fit_elongation_offset(dict(t.shape), n_cables)
     return out
 
 
@@ -446,14 +441,13 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         raise ValueError(f"scales: expected {n + C} positive values, got {scales!r}")
     train = np.asarray(train, bool)
     state = state or initial_state(data)
-    delay_term = model.term("actuation_delay")
-    delay = float(delay_term.get("delay")) if delay_term else 0.0
+    delay = float(sum(t.effect.fit_delay(dict(t.shape)) for t in model.terms))
     y_fast, y_slow = data.observations(delay)
     yT = data.torque_observation(y_slow)
     elastic = model.elastic
     taut = data.taut
     x = data.x + pretension_offsets(model, C)
-    iters = iterations if (elastic or model.has("pulley_friction")) else 1
+    iters = iterations if (elastic or any(t.effect.uses_tension for t in model.terms)) else 1
     t_fast, t_slow = state.tension_fast, state.tension
     k_hat = np.maximum(np.asarray(state.k, dtype=float), 1.0)
     lam_hat = np.maximum(np.asarray(state.lam, dtype=float), 0.0)
@@ -466,40 +460,22 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     notes = []
     for _ in range(iters):
         colsT, colsC, names, units, motor_fast = [], [], [], [], []
+        ctx = FitContext(x, t_fast, t_slow)
         for term in model.terms:
-            nm = term.name
-            if nm in _MOTOR_TERMS:
-                fast, slow = data.motor_basis(term, t_fast)
-                sym, unit = _SYMBOLS[nm]
-                colsT.append(data.Z * slow[:, None, :])                        # (S, N, C)
-                colsC.append(slow[:, :, None] * np.eye(C))                     # (S, C, C)
-                names += _cable_names(sym, C)
-                units += [unit] * C
-                motor_fast.append((len(names) - C, fast, slow))
-            elif nm == "cable_elasticity":
-                colsT.append(np.zeros((S, n, 2 * C)))
-                colsC.append(np.concatenate([x[:, :, None] * np.eye(C), data.x_dot[:, :, None] * np.eye(C)], 2))
-                names += _cable_names("k", C) + _cable_names("c_a", C)
-                units += ["N/m"] * C + ["N s/m"] * C
-            elif nm == "tension_stiffening":
-                colsT.append(np.zeros((S, n, C)))
-                colsC.append((x * t_slow)[:, :, None] * np.eye(C))
-                names += _cable_names("lambda", C)
-                units += ["1/m"] * C
-            elif nm == "pretension":
-                pass                                                            # shifts the elongations
-            elif nm == "payload":
-                colsT.append(data.payload_torque[:, :, None])
-                colsC.append(np.zeros((S, C, 1)))
-                names.append("payload")
-                units.append("kg")
-            elif nm == "spring_error":
-                colsT.append(data.spring_torque[:, :, None] * np.eye(n))
-                colsC.append(np.zeros((S, C, n)))
-                names += [f"dk({j + 1})" for j in range(n)]
-                units += ["N/m"] * n
-            elif nm == "actuation_delay":
-                pass                                                            # acts on the observations
+            eff = term.effect
+            design = eff.design(data, dict(term.shape), ctx)
+            cols = [nm for col in eff.columns for nm in col.names(n)]
+            if design.torque.shape[2] != len(cols) or design.cable.shape[2] != len(cols):
+                raise RuntimeError(f"{term.name}.design: {design.torque.shape[2]} torque and {design.cable.shape[2]} "
+                                   f"cable columns for {len(cols)} names {cols}")
+            if not cols:
+                continue                                                        # acts on the observations
+            if design.motor is not None:
+                motor_fast.append((len(names), *design.motor))
+            colsT.append(design.torque)
+            colsC.append(design.cable)
+            names += cols
+            units += [col.unit for col in eff.columns for _ in col.names(n)]
         p = len(names)
         stiff = k_hat + lam_hat * np.maximum(t_slow, 0.0)                       # (S, C) N/m
         if p:
@@ -562,42 +538,20 @@ def _pick(names, value, symbol, C, default=None):
 def plant_model(fit: Fit, nominal: NeckParams) -> tuple[NeckParams, Effects, bool]:
     """The fitted model as plant data: (parameters, effects, rigid cables).
 
-    Friction and cable fields of ``nominal`` are replaced by the fitted values (zero friction when
-    the model has none; the plant needs non-negative friction, stiffness and damping, so those are
-    clipped at 0, and stiffness at 1 N/m); extra effects become :mod:`neck_sim.effects` options.
+    Each registered effect maps its fitted values back (``to_plant``: constants it owns replaced,
+    non-negative friction, stiffness and damping clipped at 0, stiffness at 1 N/m, or an extra
+    effect) or says what the plant has without it (``when_absent``: zero friction when the model
+    has none); rigid cables when no term makes them elastic.
     """
     m = fit.model
-    C = nominal.n_cables
-    changes = {}
-    if m.has("dry_friction"):
-        changes["friction.f_s"] = tuple(np.clip(fit.group("f_s"), 0.0, None))
-        changes["friction.c_s"] = m.term("dry_friction").get("c_s")
-    else:
-        changes["friction.f_s"] = (0.0,) * C
-    if m.elastic:
-        k = np.maximum(fit.group("k"), 1.0)
-        lam = np.clip(fit.group("lambda"), 0.0, None) if m.has("tension_stiffening") else np.zeros(C)
-        changes["cables.k"] = tuple(np.maximum(k, 1.0))
-        changes["cables.c_a"] = tuple(np.clip(fit.group("c_a"), 0.0, None))
-        changes["cables.lam"] = tuple(lam)
-    if m.has("payload"):
-        changes["inertia.payload_mass"] = max(float(fit.group("payload")[0]), 0.0) + nominal.inertia.payload_mass
-    if m.has("spring_error"):
-        k = np.asarray(nominal.springs.stiffness) + fit.group("dk")
-        changes["springs.stiffness"] = tuple(np.clip(k, 0.0, None))
-    params = nominal.replace(**changes)
-    effects = {}
-    if m.has("viscous_friction"):
-        effects["viscous_friction"] = ViscousFriction(c_v=tuple(np.clip(fit.group("c_v"), 0.0, None)))
-    if m.has("stribeck_friction"):
-        t = m.term("stribeck_friction")
-        effects["stribeck_friction"] = StribeckFriction(df=tuple(np.clip(fit.group("df"), 0.0, None)),
-                                                        speed=t.get("speed"), smoothing=t.get("smoothing"))
-    if m.has("pulley_friction"):
-        effects["pulley_friction"] = PulleyFriction(mu=tuple(np.clip(fit.group("mu"), 0.0, None)),
-                                                    c=m.term("pulley_friction").get("c"))
-    if m.has("actuation_delay"):
-        effects["actuation_delay"] = ActuationDelay(delay=max(fit.delay, 0.0))
-    if m.has("pretension"):
-        effects["pretension"] = Pretension(elongation=tuple(pretension_offsets(m, C)))
-    return params, Effects(**effects), not m.elastic
+    params, extra = nominal, []
+    for cls in effect_registry.registered():
+        term = m.term(cls.name)
+        if term is None:
+            params = cls.when_absent(params, m.elastic)
+            continue
+        values = {col.symbol: fit.group(col.symbol) for col in cls.columns}
+        params, effect = cls.to_plant(params, values, dict(term.shape))
+        if effect is not None:
+            extra.append(effect)
+    return params, Effects.of(*extra), not m.elastic

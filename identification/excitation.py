@@ -25,7 +25,8 @@ from typing import NamedTuple
 import numpy as np
 
 from controllers.tension import distribute_tensions, tension_lower_bounds
-from neck_sim.analytic import cable_lengths, linkage_dynamics, motor_friction, transmission_matrix
+from neck_sim.analytic import (cable_lengths, elongation_series, linkage_dynamics, motor_friction,
+                               transmission_matrix)
 from neck_sim.params import NeckParams
 
 from identification import regressors as reg
@@ -46,22 +47,6 @@ class PredictedRun(NamedTuple):
     force: np.ndarray      # (T, N+1) N, commanded
     tension: np.ndarray    # (T, N+1) N
     x_c: np.ndarray        # (T, N+1) m, elongation
-
-
-def _elongation_series(tension: np.ndarray, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
-    """x_c (T, C) of eq (54) for tensions (T, C): exact exponential step with t held per sample."""
-    k, lam, c_a = (np.asarray(v, dtype=float) for v in (k, lam, c_a))
-    stiff = k + lam * tension
-    x_inf = tension / stiff
-    if np.all(c_a == 0):
-        return x_inf
-    decay = np.exp(-stiff * dt / np.where(c_a > 0, c_a, 1.0))
-    decay = np.where(c_a > 0, decay, 0.0)
-    x = np.empty_like(tension)
-    x[0] = x_inf[0] if x0 is None else x0
-    for i in range(1, tension.shape[0]):
-        x[i] = x_inf[i] + (x[i - 1] - x_inf[i]) * decay[i]
-    return x
 
 
 def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: float | None = None) -> PredictedRun:
@@ -87,7 +72,7 @@ def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: f
     lower_f = tension_lower_bounds(theta_dot_d, theta_ddot_d, params, f_s=params.friction.f_s, t_min=t_min)
     lower_t = lower_f - motor_friction(theta_dot_d, params) - ratio * act.I_a * theta_ddot_d
     tension = distribute_tensions(Z, torque, lower_t, f_max=1e12).requested
-    x_c = _elongation_series(tension, dt, cab.k, cab.lam, cab.c_a)
+    x_c = elongation_series(tension, dt, cab.k, cab.lam, cab.c_a)
     theta = ratio * (x_c - cable_lengths(alpha, params))
     x_dot = np.gradient(x_c, dt, axis=0)
     theta_dot = ratio * (x_dot + np.einsum("...ij,...i->...j", Z, alpha_dot))   # Z^T a_dot = (r_d/R) th_dot - x_dot

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular
+from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular, static_elongation
 from neck_sim.params import NeckParams
 
 from identification import regressors as reg
@@ -144,7 +144,7 @@ def reconstruct_elongation(force, theta_dot, params: NeckParams, *, k, lam, f_s,
 
     est = ElongationEstimator(k, lam, c_a, f_s, params.friction.c_s, dt)
     t0 = est.tension(force[0], theta_dot[0])
-    est.reset(t0 / (est.k + est.lam * t0))
+    est.reset(static_elongation(t0, est.k, est.lam))
     out = np.empty_like(np.asarray(force, dtype=float))
     out[0] = est.x
     for i in range(1, out.shape[0]):

@@ -15,6 +15,7 @@ Sources: "paper" is ``shared/paper`` (Table/section numbers are the paper's own)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -29,7 +30,7 @@ from neck_sim.atomic import atomic_write_bytes
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
     "NeckParams", "ParameterError", "default_params", "describe", "load", "save",
-    "to_dict", "from_dict",
+    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing",
 ]
 
 
@@ -45,10 +46,17 @@ def _per_joint(n: int, first: float, rest: float) -> tuple[float, ...]:
     return tuple([first] + [rest] * (n - 1))
 
 
-def _per_cable(n: int, right: tuple[float, ...], left: float) -> tuple[float, ...]:
-    """Right cables c1..cN then the left cable; right cables beyond the table repeat its last."""
-    vals = [right[min(j, len(right) - 1)] for j in range(n)]
-    return tuple(vals + [left])
+def _per_cable(sides: tuple[str, ...], right: tuple[float, ...], left: float) -> tuple[float, ...]:
+    """Per-cable defaults by side: the k-th right cable takes ``right[k]`` (the table's last
+    beyond it), every left cable ``left``."""
+    out, k = [], 0
+    for side in sides:
+        if side == "right":
+            out.append(right[min(k, len(right) - 1)])
+            k += 1
+        else:
+            out.append(left)
+    return tuple(out)
 
 
 def _check_positive(obj, *names: str, strict: bool = True) -> None:
@@ -242,13 +250,249 @@ class Sensors:
         return 2 * math.pi / self.encoder_counts_per_turn
 
 
+# ------------------------------------------------------------------------------------- routing
+
+SIDES = ("left", "right")
+PASS_ROUTINGS = ("strut", "side")
+
+# Segment kinds: what one cable does on one X-joint (the paper's cases a-d and their mirror
+# images), compiled into ``Routing.segment_cases`` (m, N).  Their lengths, eqs (3)-(6), and the
+# mirror relations live in :mod:`neck_sim.analytic.cables`.
+SEG_NONE = 0          # the cable does not reach this joint (it ended below)
+SEG_LEFT_END = 1      # case (a): left cable, wraps A_i clockwise, attached at C_i
+SEG_RIGHT_END = 2     # case (b) = mirror of (a): right cable, wraps B_i ccw, attached at D_i
+SEG_LEFT_SIDE = 3     # case (c): left cable up the left side outside the pulleys (extra turn on C_i)
+SEG_RIGHT_STRUT = 4   # case (d): right cable crossing along the diagonal B->C, then the top bar C->D
+SEG_RIGHT_SIDE = 5    # mirror of (c): right cable up the right side (extra turn on D_i)
+SEG_LEFT_STRUT = 6    # mirror of (d): left cable crossing along the diagonal A->D, then the top bar D->C
+N_SEGMENT_KINDS = 7
+_PASS_KIND = {("left", "side"): SEG_LEFT_SIDE, ("left", "strut"): SEG_LEFT_STRUT,
+              ("right", "side"): SEG_RIGHT_SIDE, ("right", "strut"): SEG_RIGHT_STRUT}
+_END_KIND = {"left": SEG_LEFT_END, "right": SEG_RIGHT_END}
+
+
+@dataclass(frozen=True)
+class CableRoute:
+    """The path of one cable from its motor at the base to its attachment point.
+
+    Every cable leaves its motor under the base bar and wraps the first pulley of its side
+    (A_1 clockwise on the left, B_1 counter-clockwise on the right); it then passes joints
+    1..ends_at-1, each either ``"strut"``-routed (crossing along the diagonal from its side's base
+    corner to the opposite top corner, then back along the top bar: case d and its mirror) or
+    ``"side"``-routed (up its side outside the pulleys: case c and its mirror), and is attached at
+    the top corner of its side of joint ``ends_at`` (C for left, D for right: cases a, b).
+    """
+
+    side: str = _f("right", "-", "which side's pulleys the cable wraps at every base bar: 'left' or 'right'")
+    passes: tuple = _f((), "-", "routing at joints 1..ends_at-1, each 'strut' or 'side'")
+    ends_at: int = _f(1, "-", "joint (1-based) at whose top corner of the cable's side it is attached")
+    extra_turns: tuple | None = _f(None, "turns",
+                                   "extra full turns on the top pulley of each passed joint; a side-routed "
+                                   "pass needs one (paper §2.2: the long cable turns once more on C_1, C_2), a "
+                                   "strut-routed pass none; default from the routing")
+    row: int | None = _f(None, "-", "plane of the cable's pulleys along the hinge axes, in 4 mm steps from the "
+                                    "bars (non-zero); default: right cables 1, 2, ..., left cables -1, -2, ...")
+
+    def _where(self, index: int | None) -> str:
+        return "routing.cables" if index is None else f"routing.cables[{index}]"
+
+    def validated(self, index: int | None = None) -> "CableRoute":
+        """A normalised copy (tuples, ints, default turns) or :class:`ParameterError` naming the field."""
+        where = self._where(index)
+        if self.side not in SIDES:
+            raise ParameterError(f"{where}.side: must be 'left' or 'right', got {self.side!r}")
+        passes = (self.passes,) if isinstance(self.passes, str) else self.passes
+        try:
+            passes = tuple(passes)
+        except TypeError:
+            raise ParameterError(f"{where}.passes: expected a list of 'strut'/'side', got {self.passes!r}") from None
+        for i, p in enumerate(passes):
+            if p not in PASS_ROUTINGS:
+                raise ParameterError(f"{where}.passes[{i}]: joint {i + 1} must be 'strut' or 'side', got {p!r}")
+        e = self.ends_at
+        if isinstance(e, bool) or not isinstance(e, (int, np.integer, float)) or int(e) != e or e < 1:
+            raise ParameterError(f"{where}.ends_at: must be a joint number >= 1, got {e!r}")
+        e = int(e)
+        if len(passes) >= e:
+            raise ParameterError(
+                f"{where}.ends_at: the cable ends at joint {e} but passes joints 1..{len(passes)} ({len(passes)} "
+                f"entries in passes): it must end above the last joint it passes (ends_at = {len(passes) + 1})")
+        if len(passes) < e - 1:
+            raise ParameterError(
+                f"{where}.passes: {len(passes)} entries, but a cable that ends at joint {e} runs up from the base "
+                f"and passes every joint below it: give one routing for each of joints 1..{e - 1}")
+        default_turns = tuple(1 if p == "side" else 0 for p in passes)
+        turns = default_turns if self.extra_turns is None else self.extra_turns
+        try:
+            turns = tuple(turns)
+        except TypeError:
+            raise ParameterError(f"{where}.extra_turns: expected a list of integers, got {self.extra_turns!r}") from None
+        if len(turns) != len(passes):
+            raise ParameterError(f"{where}.extra_turns: expected {len(passes)} values (one per passed joint), "
+                                 f"got {len(turns)}")
+        for i, (t, p) in enumerate(zip(turns, passes)):
+            if isinstance(t, bool) or not isinstance(t, (int, np.integer, float)) or int(t) != t:
+                raise ParameterError(f"{where}.extra_turns[{i}]: must be an integer, got {t!r}")
+            if p == "side" and t != 1:
+                raise ParameterError(
+                    f"{where}.extra_turns[{i}]: a side-routed pass needs exactly one extra turn on the top pulley of "
+                    f"joint {i + 1} (without it the cable leaves the pulley when the neck bends toward its side; "
+                    f"more turns only add a constant length), got {t!r}")
+            if p == "strut" and t != 0:
+                raise ParameterError(
+                    f"{where}.extra_turns[{i}]: a strut-routed pass wraps its pulleys less than half a turn; extra "
+                    f"turns there are not modelled (they only add a constant length), got {t!r}")
+        row = self.row
+        if row is not None:
+            if isinstance(row, bool) or not isinstance(row, (int, np.integer, float)) or int(row) != row:
+                raise ParameterError(f"{where}.row: must be an integer, got {row!r}")
+            if row == 0:
+                raise ParameterError(f"{where}.row: row 0 is the plane of the bars, which has no pulleys; "
+                                     f"use a non-zero row (1, 2, ... or -1, -2, ...)")
+            row = int(row)
+        return CableRoute(self.side, passes, e, tuple(int(t) for t in turns), row)
+
+    @property
+    def kinds(self) -> tuple[int, ...]:
+        """Segment kind on joints 1..ends_at (``SEG_*`` codes)."""
+        return tuple(_PASS_KIND[self.side, p] for p in self.passes) + (_END_KIND[self.side],)
+
+    def pulleys(self) -> tuple[tuple[str, int], ...]:
+        """Pulleys the cable wraps, in order, as (corner, joint): ``("A", 1)`` is A_1.
+
+        The top corners C_i, D_i of joint i are the base corners A_{i+1}, B_{i+1}; they are
+        named as top corners here.  The attachment point is not a wrap and is not listed.
+        """
+        own_top, other_top = ("C", "D") if self.side == "left" else ("D", "C")
+        out = [("A" if self.side == "left" else "B", 1)]
+        for i, p in enumerate(self.passes, start=1):
+            out += [(other_top, i), (own_top, i)] if p == "strut" else [(own_top, i)]
+        return tuple(out)
+
+
+def _corner_key(corner: str, joint: int) -> tuple[str, int]:
+    """One hinge axis, whichever joint names it: C_i = A_{i+1}, D_i = B_{i+1}."""
+    if corner in ("A", "B"):
+        return ("C" if corner == "A" else "D", joint - 1)
+    return corner, joint
+
+
+@dataclass(frozen=True)
+class Routing:
+    """The cables of the neck (m of them, m independent of N); per-cable arrays follow this order."""
+
+    cables: tuple = _f(None, "-", "one CableRoute per cable; default: the paper's routing (design notes): right "
+                                  "cable j strut-routed on joints 1..j-1 and attached at D_j, one long left cable "
+                                  "side-routed to C_N")
+
+    def __post_init__(self):
+        if self.cables is None:
+            raise ParameterError("routing.cables: required (use paper_routing(n_joints))")
+        if isinstance(self.cables, (str, Mapping)) or not hasattr(self.cables, "__iter__"):
+            raise ParameterError(f"routing.cables: expected a list of cable tables, got {type(self.cables).__name__}")
+        cables = []
+        for k, c in enumerate(self.cables):
+            if isinstance(c, Mapping):
+                known = {f.name for f in fields(CableRoute)}
+                unknown = sorted(set(c) - known)
+                if unknown:
+                    raise ParameterError(f"routing.cables[{k}].{unknown[0]}: unknown field "
+                                         f"(known: {', '.join(sorted(known))})")
+                c = CableRoute(**c)
+            elif not isinstance(c, CableRoute):
+                raise ParameterError(f"routing.cables[{k}]: expected a table, got {type(c).__name__}")
+            cables.append(c.validated(k))
+        if not cables:
+            raise ParameterError("routing.cables: a neck needs at least one cable")
+        # Default rows: right cables 1, 2, ..., left cables -1, -2, ... (the paper's planes).
+        counters = {"right": 0, "left": 0}
+        rows = []
+        for c in cables:
+            counters[c.side] += 1
+            rows.append(c.row if c.row is not None else (counters[c.side] if c.side == "right" else -counters[c.side]))
+        cables = [dataclasses.replace(c, row=r) for c, r in zip(cables, rows)]
+        self._check_rows(cables)
+        object.__setattr__(self, "cables", tuple(cables))
+
+    @staticmethod
+    def _check_rows(cables) -> None:
+        """Two cables may share a row of pulleys only if they touch no common hinge axis."""
+        used: dict[tuple[int, tuple[str, int]], int] = {}
+        for k, c in enumerate(cables):
+            end = ("C" if c.side == "left" else "D", c.ends_at)
+            for corner in [_corner_key(*p) for p in c.pulleys()] + [end]:
+                other = used.get((c.row, corner))
+                if other is not None and other != k:
+                    name = (corner[0] + str(corner[1])) if corner[1] > 0 else ("A1" if corner[0] == "C" else "B1")
+                    raise ParameterError(
+                        f"routing.cables[{k}].row: cables {other} and {k} are both in row {c.row} and both use the "
+                        f"hinge axis {name} (a pulley groove holds one cable); give them different rows")
+                used[(c.row, corner)] = k
+
+    @property
+    def n_cables(self) -> int:
+        return len(self.cables)
+
+    def check_joints(self, n_joints: int) -> None:
+        """Every cable ends on an existing joint."""
+        for k, c in enumerate(self.cables):
+            if c.ends_at > n_joints:
+                raise ParameterError(f"routing.cables[{k}].ends_at: joint {c.ends_at} does not exist "
+                                     f"(n_joints = {n_joints})")
+
+    def segment_cases(self, n_joints: int) -> np.ndarray:
+        """``SEG_*`` code of every (cable j, joint i), shape (m, N), int; the analytic model's input."""
+        return _segment_cases(self, n_joints)
+
+    @property
+    def sides(self) -> tuple[str, ...]:
+        return tuple(c.side for c in self.cables)
+
+    def is_paper_kind(self, n_joints: int) -> bool:
+        """True for the paper's kind of routing: cables 1..N on the right, cable j strut-routed on
+        joints below j and attached at D_j, cable N+1 the long left cable (any turns and rows)."""
+        return self.segment_cases(n_joints).tolist() == paper_routing(n_joints).segment_cases(n_joints).tolist()
+
+    def describe(self) -> str:
+        """One line per cable: side, row, segment case per joint, pulleys wrapped, attachment."""
+        letters = {SEG_LEFT_END: "a", SEG_RIGHT_END: "b", SEG_LEFT_SIDE: "c", SEG_RIGHT_STRUT: "d",
+                   SEG_RIGHT_SIDE: "c'", SEG_LEFT_STRUT: "d'"}
+        lines = []
+        for k, c in enumerate(self.cables):
+            own_top = "C" if c.side == "left" else "D"
+            turned = {(own_top, i + 1) for i, t in enumerate(c.extra_turns) if t}
+            wraps = " ".join(f"{p}{i}" + ("+turn" if (p, i) in turned else "") for p, i in c.pulleys())
+            lines.append(f"c{k + 1}: {c.side:<5} row {c.row:+d}  cases {' '.join(letters[x] for x in c.kinds)}  "
+                         f"wraps {wraps}  attached at {own_top}{c.ends_at}")
+        return "\n".join(lines)
+
+
+@functools.lru_cache(maxsize=256)
+def _segment_cases(routing: Routing, n_joints: int) -> np.ndarray:
+    out = np.zeros((routing.n_cables, n_joints), dtype=np.intp)
+    for j, c in enumerate(routing.cables):
+        out[j, : c.ends_at] = c.kinds
+    out.flags.writeable = False
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def paper_routing(n_joints: int = 3) -> Routing:
+    """The paper's routing for N joints (design notes): right cable j (j = 1..N) strut-routed on
+    joints 1..j-1 and attached at D_j; the long left cable N+1 side-routed on joints 1..N-1 with one
+    extra turn on each C_i, attached at C_N."""
+    right = [CableRoute("right", ("strut",) * j, j + 1) for j in range(n_joints)]
+    return Routing(tuple(right + [CableRoute("left", ("side",) * (n_joints - 1), n_joints)]))
+
+
 _GROUPS = {"geometry": Geometry, "actuation": Actuation, "springs": Springs, "inertia": Inertia,
-           "friction": Friction, "cables": Cables, "control": Control, "sensors": Sensors}
+           "friction": Friction, "cables": Cables, "control": Control, "sensors": Sensors,
+           "routing": Routing}
 
 
 @dataclass(frozen=True)
 class NeckParams:
-    """All constants of one neck: N X-joints, N + 1 cables."""
+    """All constants of one neck: N X-joints, m cables (``routing``; default the paper's N + 1)."""
 
     geometry: Geometry
     actuation: Actuation
@@ -258,17 +502,24 @@ class NeckParams:
     cables: Cables
     control: Control
     sensors: Sensors
+    routing: Routing | None = None
 
     def __post_init__(self):
         n = self.geometry.n_joints
-        checks = [("springs.stiffness", self.springs.stiffness, n, "joint"),
-                  ("friction.f_s", self.friction.f_s, n + 1, "cable"),
-                  ("cables.k", self.cables.k, n + 1, "cable"),
-                  ("cables.lam", self.cables.lam, n + 1, "cable"),
-                  ("cables.c_a", self.cables.c_a, n + 1, "cable")]
+        if self.routing is None:
+            object.__setattr__(self, "routing", paper_routing(n))
+        elif not isinstance(self.routing, Routing):
+            raise ParameterError(f"routing: expected a Routing, got {type(self.routing).__name__}")
+        self.routing.check_joints(n)
+        m = self.routing.n_cables
+        checks = [("springs.stiffness", self.springs.stiffness, n, f"joint, n_joints = {n}"),
+                  ("friction.f_s", self.friction.f_s, m, f"cable, {m} in routing.cables"),
+                  ("cables.k", self.cables.k, m, f"cable, {m} in routing.cables"),
+                  ("cables.lam", self.cables.lam, m, f"cable, {m} in routing.cables"),
+                  ("cables.c_a", self.cables.c_a, m, f"cable, {m} in routing.cables")]
         for name, vals, want, per in checks:
             if len(vals) != want:
-                raise ParameterError(f"{name}: expected {want} values (one per {per}, n_joints = {n}), got {len(vals)}")
+                raise ParameterError(f"{name}: expected {want} values (one per {per}), got {len(vals)}")
         g, l0 = self.geometry, self.springs.rest_length
         if l0 >= g.L + g.b:
             raise ParameterError(
@@ -280,7 +531,8 @@ class NeckParams:
 
     @property
     def n_cables(self) -> int:
-        return self.geometry.n_joints + 1
+        """Number of cables m (and motors), the length of every per-cable array."""
+        return self.routing.n_cables
 
     @classmethod
     def default(cls, n_joints: int = 3) -> "NeckParams":
@@ -306,22 +558,27 @@ class NeckParams:
         return NeckParams(**groups)
 
 
-def default_params(n_joints: int = 3) -> NeckParams:
-    """Defaults of the paper and the design notes for an N-joint neck."""
+def default_params(n_joints: int = 3, routing: Routing | None = None) -> NeckParams:
+    """Defaults of the paper and the design notes for an N-joint neck with ``routing`` (default
+    the paper's); per-cable defaults go by side (right cables take Table 1/2's c1, c2, c3 in order,
+    left cables c4's)."""
     geometry = Geometry(n_joints=n_joints)
     n = geometry.n_joints
+    routing = paper_routing(n) if routing is None else routing
+    sides = routing.sides
     return NeckParams(
         geometry=geometry,
         actuation=Actuation(),
         springs=Springs(stiffness=_per_joint(n, 600.0, 200.0)),
         inertia=Inertia(),
-        friction=Friction(f_s=_per_cable(n, (14.42, 17.65, 18.77), 16.18)),
-        cables=Cables(k=_per_cable(n, (5378.0, 5364.0, 6231.0), 1908.0),
-                      lam=_per_cable(n, (103.3, 88.7, 53.2), 120.9),
-                      c_a=_per_cable(n, (50.0,), 50.0),
-                      k_linear=_per_cable(n, (10454.0, 9256.0, 8319.0), 5336.0)),
+        friction=Friction(f_s=_per_cable(sides, (14.42, 17.65, 18.77), 16.18)),
+        cables=Cables(k=_per_cable(sides, (5378.0, 5364.0, 6231.0), 1908.0),
+                      lam=_per_cable(sides, (103.3, 88.7, 53.2), 120.9),
+                      c_a=_per_cable(sides, (50.0,), 50.0),
+                      k_linear=_per_cable(sides, (10454.0, 9256.0, 8319.0), 5336.0)),
         control=Control(),
         sensors=Sensors(),
+        routing=routing,
     )
 
 
@@ -330,8 +587,15 @@ def to_dict(params: NeckParams) -> dict[str, dict[str, Any]]:
     out = {}
     for grp in _GROUPS:
         obj = getattr(params, grp)
-        out[grp] = {f.name: (list(v) if isinstance(v := getattr(obj, f.name), tuple) else v) for f in fields(obj)}
+        if grp == "routing":
+            out[grp] = {"cables": [_plain(c) for c in obj.cables]}
+        else:
+            out[grp] = _plain(obj)
     return out
+
+
+def _plain(obj) -> dict[str, Any]:
+    return {f.name: (list(v) if isinstance(v := getattr(obj, f.name), tuple) else v) for f in fields(obj)}
 
 
 def from_dict(data: Mapping[str, Any], base: NeckParams | None = None) -> NeckParams:
@@ -350,9 +614,15 @@ def from_dict(data: Mapping[str, Any], base: NeckParams | None = None) -> NeckPa
         for key in vals:
             if key not in known:
                 raise ParameterError(f"{grp}.{key}: unknown field (known: {', '.join(sorted(known))})")
-    n = data.get("geometry", {}).get("n_joints", base.n_joints if base else 3)
-    if base is None or base.n_joints != n:
-        base = default_params(n)
+    n = Geometry(n_joints=data.get("geometry", {}).get("n_joints", base.n_joints if base else 3)).n_joints
+    if "routing" in data:
+        routing = Routing(**data["routing"])
+    else:
+        routing = base.routing if base is not None and base.n_joints == n else paper_routing(n)
+    routing.check_joints(n)
+    # Per-cable values of ``base`` stay only while the cables are the same (count and sides).
+    if base is None or base.n_joints != n or base.routing.sides != routing.sides:
+        base = default_params(n, routing)
     groups = {}
     for grp, cls in _GROUPS.items():
         current = dataclasses.asdict(getattr(base, grp))
@@ -400,6 +670,8 @@ def describe(params: NeckParams) -> str:
     rows = []
     for grp in _GROUPS:
         obj = getattr(params, grp)
+        if grp == "routing":
+            continue
         for f in fields(obj):
             v = getattr(obj, f.name)
             vs = ", ".join(f"{x:g}" for x in v) if isinstance(v, tuple) else f"{v:g}"
@@ -407,4 +679,5 @@ def describe(params: NeckParams) -> str:
     w0 = max(len(r[0]) for r in rows)
     w1 = max(len(r[1]) for r in rows)
     w2 = max(len(r[2]) for r in rows)
-    return "\n".join(f"{a:<{w0}}  {b:<{w1}}  {c:<{w2}}  {d}" for a, b, c, d in rows)
+    table = "\n".join(f"{a:<{w0}}  {b:<{w1}}  {c:<{w2}}  {d}" for a, b, c, d in rows)
+    return f"{table}\nrouting ({params.n_cables} cables; cases of paper §3.1, ' = mirror image):\n{params.routing.describe()}"

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from identification.blind import hidden_effect, make_case
-from identification.discovery import DiagnosisSettings, diagnose_log
+from identification.diagnosis import DiagnosisSettings, diagnose_log
 
 SEED = 3
 MARGIN = 0.05

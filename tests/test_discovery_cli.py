@@ -11,7 +11,8 @@ from mcap.writer import Writer
 
 from identification.blind import make_case
 from identification.candidates import ModelSpec, Term
-from identification.discovery import (DiagnosisSettings, diagnose_log, parse_model, split_samples, _paired_p, score)
+from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model, split_samples, score
+from identification.diagnosis.statistics import wilcoxon_p
 from neck_sim.cli import main
 from neck_sim.effects import Effects
 from neck_sim.logs import LogWriter, read_log
@@ -161,31 +162,31 @@ def test_score_and_paired_test():
     assert score(res, np.ones(400, bool), scales) == pytest.approx(expected)
     res[::7, 0] = np.nan                            # slack samples are left out
     assert np.isfinite(score(res, np.ones(400, bool), scales))
-    assert _paired_p(np.abs(rng.normal(size=30)) + 0.1) < 1e-5
-    assert _paired_p(rng.normal(size=30)) > 1e-3
-    assert _paired_p(np.zeros(30)) == 1.0
+    assert wilcoxon_p(np.abs(rng.normal(size=30)) + 0.1) < 1e-5
+    assert wilcoxon_p(rng.normal(size=30)) > 1e-3
+    assert wilcoxon_p(np.zeros(30)) == 1.0
 
 
 def test_look_alikes_are_told_apart_or_reported_together(monkeypatch):
     """The decision rule of a step (encompassing tests stubbed): never a guess between look-alikes."""
-    import identification.discovery as disc
+    import identification.diagnosis.selection as disc
 
     def cand(name, imp):
         return disc.CandidateScore(Term(name, ()), None, 4, 0.9, 0.9, imp, imp, {}, 1e-6, 1e-6, True, True)
 
     viscous, stribeck, payload = cand("viscous_friction", 0.20), cand("stribeck_friction", 0.15), cand("payload", 0.1)
     outcomes = {}
-    monkeypatch.setattr(disc, "_encompass", lambda ctx, a, b: dict(a=a.term.name, b=b.term.name, **outcomes[b.term.name]))
+    monkeypatch.setattr(disc, "encompass", lambda ctx, a, b: dict(a=a.term.name, b=b.term.name, **outcomes[b.term.name]))
     # stribeck adds nothing to viscous, viscous adds to stribeck: viscous stands
     outcomes.update(stribeck_friction={"a_adds": True, "b_adds": False}, payload={"a_adds": True, "b_adds": True})
-    assert disc._decide(None, [stribeck, viscous, payload])[0] == "viscous_friction"
+    assert disc.decide(None, [stribeck, viscous, payload])[0] == "viscous_friction"
     # neither adds to the other: ambiguous, both names
     outcomes["stribeck_friction"] = {"a_adds": False, "b_adds": False}
-    assert disc._decide(None, [stribeck, viscous, payload])[0] == ["viscous_friction", "stribeck_friction"]
+    assert disc.decide(None, [stribeck, viscous, payload])[0] == ["viscous_friction", "stribeck_friction"]
     # the runner-up explains all the leader does and more: it replaces the leader
     outcomes["stribeck_friction"] = {"a_adds": False, "b_adds": True}
-    verdict, chosen, _ = disc._decide(None, [stribeck, viscous, payload])
+    verdict, chosen, _ = disc.decide(None, [stribeck, viscous, payload])
     assert verdict == "stribeck_friction" and chosen is stribeck
     # nothing significant: none
     weak = disc.CandidateScore(Term("payload", ()), None, 1, 1, 1, 0.01, 0.01, {}, 0.5, 0.5, True, False)
-    assert disc._decide(None, [weak])[0] == "none"
+    assert disc.decide(None, [weak])[0] == "none"

@@ -1,7 +1,5 @@
 """The effect vocabulary: names, parameter hooks, validation, formulas and parameter mappings."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -16,7 +14,7 @@ DOC_NAMES = ["dry_friction", "viscous_friction", "stribeck_friction", "pulley_fr
 def test_vocabulary_is_the_documented_one():
     assert list(E.VOCABULARY) == DOC_NAMES
     assert set(E.EFFECT_TYPES) == set(DOC_NAMES) - {"none"}
-    assert [f.name for f in dataclasses.fields(E.Effects)] == DOC_NAMES[:-1]
+    assert list(E.Effects.slots()) == list(E.names()) == DOC_NAMES[:-1]
     for name, cls in E.EFFECT_TYPES.items():
         assert cls.name == name and cls.__doc__ and len(cls.__doc__) > 60
 

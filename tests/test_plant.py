@@ -2,6 +2,7 @@
 
 import ctypes
 import gc
+import subprocess
 
 import mujoco
 import numpy as np
@@ -223,6 +224,26 @@ def test_native_force_laws_are_the_definitions(params, rng):
         fd = (an.motor_friction(wa + h, params) - an.motor_friction(wa - h, params)
               + sum(e.motor_force(wa + h, ta) - e.motor_force(wa - h, ta) for e in eff.motor_effects())) / (2 * h)
         assert out[1] == pytest.approx(fd[j], rel=1e-6, abs=1e-6)
+
+
+def test_ctypes_mirror_has_the_c_layout(tmp_path):
+    """PlantStruct (generated from the C text) against the C compiler's own sizeof/offsetof."""
+    if not P.native_available():
+        pytest.skip("no C compiler")
+    from neck_sim import native
+    fields = [name for name, _ in native.PlantStruct._fields_]
+    assert fields[:3] == ["ncable", "rigid", "njoint"] and "loop_gap" in fields and len(fields) > 30
+    prog = tmp_path / "layout.c"
+    prog.write_text(f'#include <stdio.h>\n#include <stddef.h>\n#include "{native.SOURCE_PATH}"\n'
+                    'int main(void) {\n  printf("%zu\\n", sizeof(neck_plant));\n'
+                    + "".join(f'  printf("%zu\\n", offsetof(neck_plant, {f}));\n' for f in fields) + "}\n")
+    exe = tmp_path / "layout"
+    subprocess.run([native.compiler(), "-I", native.mujoco_include_dir(), str(prog), "-o", str(exe), "-lm"],
+                   check=True, capture_output=True)
+    c_layout = [int(v) for v in subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()]
+    py_layout = [ctypes.sizeof(native.PlantStruct)] + [getattr(native.PlantStruct, f).offset for f in fields]
+    assert py_layout == c_layout
+    assert native.PlantStruct.tension.size == ctypes.sizeof(ctypes.c_double) * P.MAX_CABLES
 
 
 def test_dead_plants_leave_the_registry(params):

@@ -1,9 +1,15 @@
 """Cable lengths with pulleys, the transmission matrix Z and its time derivative (paper §3.1).
 
-Routing (``shared/design/geometry-and-errata.md``): right cable j (j = 1..N) follows case (d)
-(strut routed, eq 6) on joints 1..j-1 and case (b) (eq 4) on joint j, where it is attached at D_j;
-the left cable N+1 follows case (c) (eq 5) on joints 1..N-1 and case (a) (eq 3) on joint N,
-attached at C_N.  Errata fixed: eq (8) uses l_r (cable 1 is a right cable), eq (7) uses L.
+Routing is data (:class:`neck_sim.params.Routing`, m cables for N joints): on every joint a cable
+follows one segment kind -- the paper's cases (a) eq (3), (b) eq (4), (c) eq (5), (d) eq (6) or the
+mirror images c'(alpha) = c(-alpha) = l_r + r alpha (right cable up the right side) and
+d'(alpha) = d(-alpha) (left cable crossing along the diagonal A->D); note b(alpha) = a(-alpha).
+A cable's length is the sum of its segments, so every segment kind is evaluated per joint into
+an array seg[..., K, N] and gathered with the routing's ``segment_cases`` (m, N):
+``l_j = sum_i seg[case[j, i], i]`` and ``Z_ij = -dseg[case[j, i], i]``.  The paper's routing
+(the default, design notes): right cable j (j = 1..N) case (d) on joints 1..j-1 and (b) on joint
+j, attached at D_j; the left cable N+1 case (c) on joints 1..N-1 and (a) on joint N, attached at
+C_N.  Errata fixed: eq (8) uses l_r (cable 1 is a right cable), eq (7) uses L.
 
 Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
@@ -19,64 +25,102 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, check_alpha
-from neck_sim.params import NeckParams
+from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, _side_terms, check_alpha, side_terms_kernel
+from neck_sim.jit import dual, kernel
+from neck_sim.params import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
+                             SEG_RIGHT_SIDE, SEG_RIGHT_STRUT, NeckParams)
 
-__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "CableKinematics",
-           "cable_kinematics", "elongation", "motor_angles_rigid"]
-
-
-class _Segments(NamedTuple):
-    """Per-joint variable lengths of the four routing cases, with d/dalpha and d2/dalpha2."""
-
-    a: tuple  # case (a), left cable on its attaching joint
-    b: tuple  # case (b), right cable on its attaching joint
-    c: tuple  # case (c), left cable passing a joint
-    d: tuple  # case (d), right cable passing a joint (strut routed)
+__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
+           "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]
 
 
-def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2)) -> _Segments:
-    """Segments for joint angles of any shape, for bars b, diagonals L and pulleys r (m).
+@dual
+def _segment_slopes(alpha, b, L, r, sides):
+    """First alpha-derivatives of the six segment kinds (``SEG_*`` codes 1..6, in that order), m/rad.
 
-    Only the derivative ``orders`` asked for are computed (the others are None): Z needs order 1
-    alone, and skipping the corner geometry of order 2 makes it several times cheaper.
+    ``sides`` is :func:`neck_sim.analytic.geometry._side_terms` of the same angles; arrays (numpy)
+    or one joint's scalars (compiled twin).  psi' of eq (7) comes from the rod B->C of constant
+    length L; the mirrors are c'(alpha) = c(-alpha), d'(alpha) = d(-alpha).
+    """
+    s, c = np.sin(alpha / 2), np.cos(alpha / 2)
+    l_l, dl_l, l_r, dl_r = sides[0], sides[1], sides[3], sides[4]
+    t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
+    return (dl_l * t_l / l_l - r / 2,                                                   # (a), eq (3)
+            dl_r * t_r / l_r + r / 2,                                                   # (b), eq (4)
+            dl_l - r,                                                                   # (c), eq (5)
+            r * (2 * (0.5 * l_l * l_l + 0.5 * b * l_l * s - b * c * dl_l) / (L * L) - 1),  # (d), eq (6)
+            dl_r + r,                                                                   # mirror of (c)
+            r * (1 - 2 * (0.5 * l_r * l_r - 0.5 * b * l_r * s + b * c * dl_r) / (L * L)))  # mirror of (d)
+
+
+_slopes_kernel = _segment_slopes.jit
+if (SEG_LEFT_END, SEG_RIGHT_END, SEG_LEFT_SIDE, SEG_RIGHT_STRUT, SEG_RIGHT_SIDE, SEG_LEFT_STRUT) != (1, 2, 3, 4, 5, 6):
+    raise ImportError("neck_sim.params: segment codes changed; update _segment_slopes' order")
+
+
+@kernel
+def transmission_kernel(alpha, geometry, cases, Z) -> None:
+    """Z (N, m) of one pose alpha (N,) into ``Z``: geometry = (b, L, r) m, cases (m, N) the
+    routing's ``segment_cases``; the same slopes and gather as :func:`transmission_matrix`."""
+    b, L, r = geometry[0], geometry[1], geometry[2]
+    slope = np.zeros(N_SEGMENT_KINDS)
+    for i in range(alpha.shape[0]):
+        sl = _slopes_kernel(alpha[i], b, L, r, side_terms_kernel(alpha[i], b, L))
+        for kind in range(N_SEGMENT_KINDS - 1):
+            slope[kind + 1] = sl[kind]
+        for j in range(cases.shape[0]):
+            Z[i, j] = -slope[cases[j, i]]
+
+
+def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
+              left_strut: bool = True) -> dict:
+    """Per-joint variable length of every segment kind, order -> array (..., K, N) (K kinds).
+
+    Row k holds kind k of :mod:`neck_sim.params` (``SEG_*``; row 0, "not on this joint", is
+    zero); order 0 is the length (m), 1 and 2 its first two alpha-derivatives.  Only the
+    ``orders`` asked for are computed: Z needs order 1 alone, and skipping the corner geometry
+    of order 2 makes it several times cheaper; ``left_strut=False`` skips the mirror of case (d).
     """
     want = set(orders)
     half = alpha / 2
     s, c = np.sin(half), np.cos(half)
-    q = np.sqrt(L * L - (b * c) ** 2)
-    dq = (b * b / 2) * s * c / q
-    l_l, l_r = q - b * s, q + b * s
-    dl_l, dl_r = dq - (b / 2) * c, dq + (b / 2) * c
+    sides = _side_terms(alpha, b, L)
+    l_l, dl_l, ddl_l, l_r, dl_r, ddl_r = sides
     t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
     if 2 in want:
         jl = _joint_local(alpha, b, L)
-        ddl_l, ddl_r = jl.sides.ddl_l, jl.sides.ddl_r
-    seg = {}
+    out = {k: np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1])) for k in want}
+    slopes = _segment_slopes(alpha, b, L, r, sides) if 1 in want else None
+
+    def put(kind, val, d1, d2):
+        for order, v in ((0, val), (2, d2)):
+            if order in want:
+                out[order][..., kind, :] = v()
+        if 1 in want:
+            out[1][..., kind, :] = slopes[kind - 1]
+
     # Tangent from a pulley of radius r to the attachment point at distance l, eqs (3), (4);
-    # sign -1 for case (a) (left cable, clockwise), +1 for case (b) (right cable).
-    for name, l, dl, t, sign in (("a", l_l, dl_l, t_l, -1.0), ("b", l_r, dl_r, t_r, 1.0)):
-        val = t - r * np.arctan2(t, r) + sign * r * half if 0 in want else None
-        d1 = dl * t / l + sign * r / 2 if 1 in want else None
-        d2 = None
-        if 2 in want:
-            ddl = ddl_l if name == "a" else ddl_r
-            d2 = ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl
-        seg[name] = (val, d1, d2)
-    seg["c"] = (l_l - r * alpha if 0 in want else None, dl_l - r if 1 in want else None,
-                ddl_l if 2 in want else None)
-    # psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant length L.
-    psi_ = np.arctan2(l_l * c, -b - l_l * s) if 0 in want else None
-    dpsi = (0.5 * l_l * l_l + 0.5 * b * l_l * s - b * c * dl_l) / (L * L) if 1 in want else None
+    # sign -1 for case (a) (left cable, clockwise), +1 for case (b) (right cable) = (a) mirrored.
+    for kind, l, dl, t, sign in ((SEG_LEFT_END, l_l, dl_l, t_l, -1.0), (SEG_RIGHT_END, l_r, dl_r, t_r, 1.0)):
+        ddl = ddl_l if kind == SEG_LEFT_END else ddl_r
+        put(kind, lambda: t - r * np.arctan2(t, r) + sign * r * half, None,
+            lambda: ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl)
+    # Case (c), eq (5), and its mirror c'(alpha) = c(-alpha) = l_r + r alpha (the extra full turn
+    # on the top pulley keeps the cable on it; it adds a constant only).
+    put(SEG_LEFT_SIDE, lambda: l_l - r * alpha, None, lambda: ddl_l)
+    put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, None, lambda: ddl_r)
+    # Case (d), eq (6): psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant
+    # length L.  Its mirror d'(alpha) = d(-alpha), with psi(-alpha) = atan2(l_r c, l_r s - b).
     ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else None
-    seg["d"] = (r * (2 * psi_ - alpha) if 0 in want else None, r * (2 * dpsi - 1) if 1 in want else None,
-                2 * r * ddpsi if 2 in want else None)
-    return _Segments(seg["a"], seg["b"], seg["c"], seg["d"])
+    put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha), None, lambda: 2 * r * ddpsi)
+    if left_strut:
+        ddpsi_m = _psi_derivatives(_joint_local(-alpha, b, L), b, L)[1] if 2 in want else None
+        put(SEG_LEFT_STRUT, lambda: r * (2 * np.arctan2(l_r * c, l_r * s - b) + alpha), None, lambda: 2 * r * ddpsi_m)
+    return out
 
 
 def _geom(params: NeckParams) -> tuple[float, float, float]:
@@ -84,62 +128,60 @@ def _geom(params: NeckParams) -> tuple[float, float, float]:
     return g.b, g.L, g.r
 
 
-def _assemble_lengths(seg: _Segments, n: int) -> np.ndarray:
-    d_val = seg.d[0]
-    passed = np.cumsum(d_val, axis=-1) - d_val            # sum over joints i < j of case (d)
-    right = passed + seg.b[0]
-    left = np.sum(seg.c[0][..., : n - 1], axis=-1) + seg.a[0][..., n - 1]
-    return np.concatenate([right, left[..., None]], axis=-1)
+def _cases(params: NeckParams) -> np.ndarray:
+    """Segment kind of every (cable j, joint i), (m, N) int (:meth:`Routing.segment_cases`)."""
+    return params.routing.segment_cases(params.n_joints)
 
 
-@functools.lru_cache(maxsize=None)
-def _z_indices(n: int):
-    """(rows, cols) of joints i passed by right cables j > i, and the diagonal indices."""
-    rows, cols = np.triu_indices(n, 1)
-    return rows, cols, np.arange(n)
+def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
+    """seg[..., cases[j, i], i] arranged as (..., m, N)."""
+    return seg[..., cases, np.arange(cases.shape[1])]
 
 
-def _assemble_z(seg: _Segments, n: int, order: int) -> np.ndarray:
-    """-(d^order l_c / d alpha^order) arranged as an (..., N, N+1) matrix (order 1 or 2)."""
-    dd, db, dc, da = seg.d[order], seg.b[order], seg.c[order], seg.a[order]
-    out = np.zeros(db.shape[:-1] + (n, n + 1))
-    rows, cols, idx = _z_indices(n)
-    out[..., rows, cols] = -dd[..., rows]
-    out[..., idx, idx] = -db
-    out[..., : n - 1, n] = -dc[..., : n - 1]
-    out[..., n - 1, n] = -da[..., n - 1]
-    return out
+def _evaluate(alpha: np.ndarray, params: NeckParams, orders) -> dict:
+    cases = _cases(params)
+    return _segments(alpha, *_geom(params), orders=orders, left_strut=bool(np.any(cases == SEG_LEFT_STRUT)))
+
+
+def _lengths(alpha: np.ndarray, params: NeckParams, seg0: np.ndarray) -> np.ndarray:
+    """Sum of the cables' segments minus their value at the straight pose, (..., m)."""
+    cases = _cases(params)
+    zero = _evaluate(np.zeros(params.n_joints), params, (0,))[0]
+    return _gather(seg0, cases).sum(axis=-1) - _gather(zero, cases).sum(axis=-1)
+
+
+def _z(seg: np.ndarray, params: NeckParams) -> np.ndarray:
+    """-(segment derivative) arranged as an (..., N, m) matrix."""
+    return -np.swapaxes(_gather(seg, _cases(params)), -1, -2)
 
 
 def cable_lengths(alpha, params: NeckParams) -> np.ndarray:
-    """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for N joints), shape (..., N+1), m."""
-    n = params.n_joints
-    a = check_alpha(alpha, n)
-    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
-    return _assemble_lengths(_segments(a, *_geom(params), orders=(0,)), n) - zero
+    """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for any routing), shape (..., m), m."""
+    a = check_alpha(alpha, params.n_joints)
+    return _lengths(a, params, _evaluate(a, params, (0,))[0])
 
 
 def transmission_matrix(alpha, params: NeckParams) -> np.ndarray:
-    """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, N+1), m."""
-    n = params.n_joints
-    return _assemble_z(_segments(check_alpha(alpha, n), *_geom(params), orders=(1,)), n, 1)
+    """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, m), m."""
+    a = check_alpha(alpha, params.n_joints)
+    return _z(_evaluate(a, params, (1,))[1], params)
 
 
 def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
-    """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, N+1), m/s.
+    """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, m), m/s.
 
     Column j of Z depends on alpha_i only through row i, so Zdot_ij = (dZ_ij/dalpha_i) alpha_dot_i.
     """
     n = params.n_joints
     a = check_alpha(alpha, n)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
-    return _assemble_z(_segments(a, *_geom(params), orders=(2,)), n, 2) * ad[..., :, None]
+    return _z(_evaluate(a, params, (2,))[2], params) * ad[..., :, None]
 
 
 class CableKinematics(NamedTuple):
-    lengths: np.ndarray  # (..., N+1) l_c - l_c0, m
-    Z: np.ndarray        # (..., N, N+1), m
-    Zdot: np.ndarray     # (..., N, N+1), m/s
+    lengths: np.ndarray  # (..., m) l_c - l_c0, m
+    Z: np.ndarray        # (..., N, m), m
+    Zdot: np.ndarray     # (..., N, m), m/s
 
 
 def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
@@ -147,20 +189,18 @@ def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
     n = params.n_joints
     a = check_alpha(alpha, n)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
-    seg = _segments(a, *_geom(params))
-    zero = _assemble_lengths(_segments(np.zeros(n), *_geom(params), orders=(0,)), n)
-    return CableKinematics(_assemble_lengths(seg, n) - zero, _assemble_z(seg, n, 1),
-                           _assemble_z(seg, n, 2) * ad[..., :, None])
+    seg = _evaluate(a, params, (0, 1, 2))
+    return CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params) * ad[..., :, None])
 
 
 def elongation(theta, alpha, params: NeckParams) -> np.ndarray:
-    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., N+1), m."""
+    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
     a = params.actuation
     return cable_lengths(alpha, params) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
 
 
 def motor_angles_rigid(alpha, params: NeckParams, elongation=None) -> np.ndarray:
-    """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., N+1), rad."""
+    """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., m), rad."""
     a = params.actuation
     x = 0.0 if elongation is None else np.asarray(elongation, dtype=float)
     return (a.R / a.r_d) * (x - cable_lengths(alpha, params))

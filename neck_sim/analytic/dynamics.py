@@ -17,7 +17,7 @@ x_c = l_c - l_c0 + (r_d/R) theta, so that eqs (29), (30) read
 
     I_a theta_ddot = (r_d/R) (f - t_c - f_friction),    M_m alpha_ddot + c_m + g = Z t_c.
 
-Shapes: alpha, alpha_dot (..., N); forces, tensions (..., N+1).  SI units throughout.
+Shapes: alpha, alpha_dot (..., N); forces, tensions (..., m) (m cables, N + 1 for the paper's routing).  SI units throughout.
 """
 
 from __future__ import annotations
@@ -31,8 +31,10 @@ from neck_sim.analytic.geometry import check_alpha, corner_terms_kernel, side_te
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
-__all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
-           "potential_energy", "kinetic_energy", "arctan_friction", "motor_friction", "cable_tension", "rigid_acceleration",
+__all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
+           "bias_forces", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
+           "motor_friction", "cable_tension", "cable_stiffness", "static_elongation", "elongation_step",
+           "elongation_series", "rigid_acceleration",
            "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
 
 
@@ -243,7 +245,7 @@ def arctan_friction(theta_dot, c_s, f_s):
 
 
 def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
-    """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., N+1), N.
+    """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., m), N.
 
     Expressed as a force along the cable; ``f_s`` defaults to the plant's ``params.friction.f_s``.
     """
@@ -252,7 +254,7 @@ def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
 
 
 def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
-    """Tension-only cable tension of eq (54) solved for t, (..., N+1), N.
+    """Tension-only cable tension of eq (54) solved for t, (..., m), N.
 
     t = (k x + c_a x_dot) / (1 - lambda x) for x > 0, 0 when slack (x <= 0) and never negative.
     Above ``cables.t_cap`` the elastic part continues with its tangent stiffness, so there is no
@@ -270,6 +272,60 @@ def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> n
     elastic = k * xe / denom + np.maximum(x - x_star, 0.0) * k / (1.0 - lam * x_star) ** 2
     t = elastic + c_a * x_dot / denom
     return np.where(x > 0, np.maximum(t, 0.0), 0.0)
+
+
+@dual
+def _stiffness(tension, k, lam):
+    return k + lam * np.maximum(tension, 0.0)
+
+
+def cable_stiffness(tension, k, lam) -> np.ndarray:
+    """Secant stiffness k + lambda t of eq (54), (..., N+1) N/m, for tensions t (..., N+1) N
+    (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
+    return _stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float), np.asarray(lam, dtype=float))
+
+
+def static_elongation(tension, k, lam) -> np.ndarray:
+    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., N+1) m, 0 for t <= 0.
+
+    The one definition of elongation from tension; :func:`elongation_step` and
+    :func:`elongation_series` add the damping c_a x_dot."""
+    return np.maximum(np.asarray(tension, dtype=float), 0.0) / cable_stiffness(tension, k, lam)
+
+
+@dual
+def _euler_elongation(x, tension, dt, c_a, stiffness):
+    return x + dt / c_a * (tension - stiffness * x)
+
+
+def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
+    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (N+1,) m.
+
+    ``x`` (..., N+1) m the elongation at the start of the step, ``tension`` (..., N+1) N (>= 0)
+    applied during it, ``dt`` s, ``c_a`` N s/m > 0.  The compiled control step calls the same
+    formulas' twins (``_stiffness.jit``, ``_euler_elongation.jit``)."""
+    return _euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
+
+
+def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
+    """Elongations x (T, N+1) m of eq (54) for tensions (T, N+1) N held per sample of ``dt`` s.
+
+    Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
+    x_inf = :func:`static_elongation` (stable for any dt; c_a = 0 gives the static elongation);
+    ``x0`` (N+1,) m defaults to the static elongation of the first sample."""
+    tension = np.asarray(tension, dtype=float)
+    c_a = np.asarray(c_a, dtype=float)
+    stiff = cable_stiffness(tension, k, lam)
+    x_inf = static_elongation(tension, k, lam)
+    if np.all(c_a == 0):
+        return x_inf
+    decay = np.exp(-stiff * dt / np.where(c_a > 0, c_a, 1.0))
+    decay = np.where(c_a > 0, decay, 0.0)
+    x = np.empty_like(tension)
+    x[0] = x_inf[0] if x0 is None else x0
+    for i in range(1, tension.shape[0]):
+        x[i] = x_inf[i] + (x[i - 1] - x_inf[i]) * decay[i]
+    return x
 
 
 def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True) -> np.ndarray:
@@ -294,7 +350,7 @@ def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool =
 
 
 class ElasticState(NamedTuple):
-    """State of eqs (29)-(30): joint angles/speeds (..., N) and motor angles/speeds (..., N+1)."""
+    """State of eqs (29)-(30): joint angles/speeds (..., N) and motor angles/speeds (..., m)."""
 
     alpha: np.ndarray
     alpha_dot: np.ndarray
@@ -321,17 +377,17 @@ def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: boo
 def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], duration: float,
                      params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
                      alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10):
-    """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (N+1,) N; returns (t, ElasticState)."""
+    """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (m,) N; returns (t, ElasticState)."""
     from scipy.integrate import solve_ivp
 
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
     a0 = check_alpha(alpha0, n, "alpha0")
-    th0 = np.asarray(theta0, dtype=float).reshape(n + 1)
+    th0 = np.asarray(theta0, dtype=float).reshape(m)
     ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
-    td0 = np.zeros(n + 1) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
+    td0 = np.zeros(m) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
 
     def rhs(t, y):
-        st = ElasticState(y[:n], y[n:2 * n], y[2 * n:3 * n + 1], y[3 * n + 1:])
+        st = ElasticState(y[:n], y[n:2 * n], y[2 * n:2 * n + m], y[2 * n + m:])
         add, tdd, _ = elastic_derivative(st, forces(t), params, friction)
         return np.concatenate([st.alpha_dot, add, st.theta_dot, tdd])
 
@@ -341,7 +397,7 @@ def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], dura
     if not sol.success:
         raise RuntimeError(f"simulate_elastic: integration failed ({sol.message})")
     y = sol.y.T
-    return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:3 * n + 1], y[:, 3 * n + 1:])
+    return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:2 * n + m], y[:, 2 * n + m:])
 
 
 def simulate_rigid(alpha0, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,

@@ -13,7 +13,7 @@ import numpy as np
 from neck_sim.analytic.cables import _segments, transmission_matrix
 from neck_sim.analytic.geometry import check_alpha, check_cables
 from neck_sim.jit import kernel, solve_in_place
-from neck_sim.params import NeckParams
+from neck_sim.params import SEG_RIGHT_END, SEG_RIGHT_STRUT, NeckParams
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
            "estimate_alpha_pinv"]
@@ -26,8 +26,8 @@ class UnreachableError(ValueError):
 def _right_segments(alpha: np.ndarray, params: NeckParams):
     """Case (b) value and derivative and case (d) value for joint angles of any shape."""
     g = params.geometry
-    seg = _segments(alpha, g.b, g.L, g.r, orders=(0, 1))
-    return seg.b[0], seg.b[1], seg.d[0]
+    seg = _segments(alpha[..., None], g.b, g.L, g.r, orders=(0, 1), left_strut=False)
+    return (seg[0][..., SEG_RIGHT_END, 0], seg[1][..., SEG_RIGHT_END, 0], seg[0][..., SEG_RIGHT_STRUT, 0])
 
 
 def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol: float = 1e-13,
@@ -42,6 +42,9 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
     """
     n = params.n_joints
     act = params.actuation
+    if not params.routing.is_paper_kind(n):
+        raise ValueError("estimate_alpha_triangular: eq (33) needs the paper's routing (right cable j strut-routed "
+                         "below joint j and attached at D_j, plus one long left cable); this neck's routing differs")
     th = check_cables(theta, n + 1, "theta")
     x = np.zeros_like(th) if elongation is None else check_cables(elongation, n + 1, "elongation")
     th, x = np.broadcast_arrays(th, x)
@@ -113,39 +116,43 @@ def _pinv_rows(Z, rhs, out) -> int:
 def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
-    Z has full row rank, so (Z^T)^+ = (Z Z^T)^{-1} Z (:func:`pinv_increment_kernel`).
+    Needs at least as many cables as joints (m >= N), so that Z has full row rank and
+    (Z^T)^+ = (Z Z^T)^{-1} Z (:func:`pinv_increment_kernel`): with fewer cables the motor angles do
+    not determine the pose.
     """
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
+    if m < n:
+        raise ValueError(f"pinv_increment: {m} cables cannot determine {n} joint angles (eq 35 needs m >= N)")
     act = params.actuation
     a = check_alpha(alpha_hat, n, "alpha_hat")
-    dth = check_cables(d_theta, n + 1, "d_theta")
+    dth = check_cables(d_theta, m, "d_theta")
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
-        rhs = rhs - check_cables(d_elongation, n + 1, "d_elongation")
+        rhs = rhs - check_cables(d_elongation, m, "d_elongation")
     Z = transmission_matrix(a, params)
     batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
     rows = int(np.prod(batch))
-    Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, n + 1))).reshape(rows, n, n + 1)
-    rhs = np.ascontiguousarray(np.broadcast_to(rhs, batch + (n + 1,))).reshape(rows, n + 1)
+    Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
+    rhs = np.ascontiguousarray(np.broadcast_to(rhs, batch + (m,))).reshape(rows, m)
     out = np.empty((rows, n))
     bad = _pinv_rows(Z, rhs, out)
     if bad >= 0:
-        raise UnreachableError(f"alpha_hat: Z Z^T is singular at sample {np.unravel_index(bad, batch) if batch else ()} "
-                               "(pose outside the workspace)")
+        where = np.unravel_index(bad, batch) if batch else ()
+        raise UnreachableError(f"alpha_hat: Z Z^T is singular at sample {where} (pose outside the workspace)")
     return out.reshape(batch + (n,))
 
 
 def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None) -> np.ndarray:
-    """alpha_hat over a time series by eq (35) corrected, all N+1 cables, shape (..., T, N), rad.
+    """alpha_hat over a time series by eq (35) corrected, all m cables, shape (..., T, N), rad.
 
-    ``theta`` (..., T, N+1); ``elongation`` (..., T, N+1) or None; ``alpha0`` (..., N) the pose at
+    ``theta`` (..., T, m); ``elongation`` (..., T, m) or None; ``alpha0`` (..., N) the pose at
     the first sample (default straight).  Vectorised over the leading batch axes, sequential in T.
     """
-    n = params.n_joints
-    th = check_cables(theta, n + 1, "theta")
+    n, m = params.n_joints, params.n_cables
+    th = check_cables(theta, m, "theta")
     if th.ndim < 2:
-        raise ValueError(f"theta: expected a time series of shape (..., T, {n + 1}), got {th.shape}")
-    x = None if elongation is None else check_cables(elongation, n + 1, "elongation")
+        raise ValueError(f"theta: expected a time series of shape (..., T, {m}), got {th.shape}")
+    x = None if elongation is None else check_cables(elongation, m, "elongation")
     if x is not None and x.shape[-2] != th.shape[-2]:
         raise ValueError(f"elongation: {x.shape[-2]} samples but theta has {th.shape[-2]}")
     a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_alpha(alpha0, n, "alpha0")

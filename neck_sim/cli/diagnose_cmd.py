@@ -35,7 +35,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from identification.discovery import DiagnosisSettings, diagnose_log, parse_model
+    from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from identification.report import format_summary, write_report
     from neck_sim.logs import read_log
     from neck_sim.params import load

@@ -106,7 +106,7 @@ def reproduce(settings: ReproduceSettings) -> dict:
     from controllers.plots import save_run_plots
     from identification.paper import format_tables, identify_log
     from identification.plots import save_identification_figures
-    from identification.discovery import diagnose_log
+    from identification.diagnosis import diagnose_log
     from identification.report import write_report
     from neck_sim import mjcf
     from neck_sim.crossval import crossval, format_table

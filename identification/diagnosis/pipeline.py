@@ -1,0 +1,133 @@
+"""The diagnosis from end to end: split, forward selection, gains, result."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from identification.candidates import MeasuredData, plant_model
+from identification.diagnosis.fitting import StepContext
+from identification.diagnosis.gains import alpha_hat_errors, resimulate, residual_rms
+from identification.diagnosis.result import (Diagnosis, all_parameters, cables_of, extended_dict, joints_of,
+                                             term_parameters)
+from identification.diagnosis.search import retune_shapes
+from identification.diagnosis.selection import run_step
+from identification.diagnosis.settings import DiagnosisSettings, parse_model
+from identification.diagnosis.split import split_samples
+from identification.preprocessing import Measurements
+from neck_sim.params import NeckParams
+
+
+def single_thread():
+    """BLAS limited to one thread: the fits are many small least-squares problems, for which
+    OpenBLAS threads only cost (10x slower on a loaded 2-core machine)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:              # pragma: no cover - threadpoolctl is a dependency
+        import contextlib
+        return contextlib.nullcontext()
+    return threadpool_limits(1)
+
+
+def diagnose(data: MeasuredData, model=None, settings: DiagnosisSettings | None = None, *,
+             progress: bool = False, source: str = "") -> Diagnosis:
+    """Diagnose prepared measured data from the baseline ``model`` (default: the paper's)."""
+    with single_thread():
+        return _diagnose(data, model, settings, progress=progress, source=source)
+
+
+def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, progress: bool,
+              source: str) -> Diagnosis:
+    s = settings or DiagnosisSettings()
+    model = parse_model(model)
+    timings = {}
+    t0 = time.perf_counter()
+    split = split_samples(data.t, data.activity, s)
+    steps = []
+    current, state = model, None
+    for i in range(max(s.max_steps, 1)):
+        if i > 0:
+            # shapes searched at an earlier step were chosen without the effects found since
+            current = retune_shapes(data, current, split, s, state, {st.chosen.term.name for st in steps})
+        step = run_step(data, current, split, s, state, progress=progress, desc=f"step {i + 1}: candidates")
+        steps.append(step)
+        if step.chosen is None:
+            break
+        current, state = step.chosen.fit.model, step.chosen.fit.state
+    timings["search"] = time.perf_counter() - t0
+    # models compared: each step's baseline and the last extension (if the last step found one)
+    evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
+    fits = [e.fit for e in evaluated]
+    masks = {"holdout": split.holdout, "all": np.ones(data.S, bool)}
+    t1 = time.perf_counter()
+    alpha = alpha_hat_errors(data, fits, masks) if s.alpha_hat else [None] * len(fits)
+    timings["alpha_hat"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    resim = {}
+    if s.resimulate:
+        for idx in sorted({0, len(fits) - 1}):
+            p, e, rigid = plant_model(fits[idx], data.params)
+            resim[idx] = resimulate(data, p, e, rigid, split, masks, progress=progress)
+    timings["resimulation"] = time.perf_counter() - t1
+
+    def summary(idx: int) -> dict:
+        ev = evaluated[idx]
+        out = {"model": ev.fit.model.to_list(), "description": ev.fit.model.describe(),
+               "parameters": all_parameters(ev.fit),
+               "residual_rms_crossvalidated": residual_rms(data, ev.fit, ev.cv, masks["all"]),
+               "residual_rms_holdout": residual_rms(data, ev.fit, ev.fit.residuals(), split.holdout),
+               "residual_rms_train": residual_rms(data, ev.fit, ev.fit.residuals(), split.train)}
+        if alpha[idx] is not None:
+            out["alpha_hat_vs_camera"] = {k: v for k, v in alpha[idx].items() if k != "series"}
+        if idx in resim:
+            out["resimulation"] = {k: v for k, v in resim[idx].items() if k != "series"}
+        return out
+
+    summaries = [summary(i) for i in range(len(evaluated))]
+    findings = []
+    for i, st in enumerate(steps):
+        c = st.chosen
+        if c is None:
+            continue
+        ctx = StepContext(data, split, s, st.base, st.scales)
+        before, after = summaries[i], summaries[i + 1]
+        gain = {"residual_rms_crossvalidated": {"before": before["residual_rms_crossvalidated"],
+                                                "after": after["residual_rms_crossvalidated"]},
+                "residual_rms_holdout": {"before": before["residual_rms_holdout"],
+                                         "after": after["residual_rms_holdout"]}}
+        if "alpha_hat_vs_camera" in before and "alpha_hat_vs_camera" in after:
+            gain["alpha_hat_vs_camera_holdout"] = {"before": before["alpha_hat_vs_camera"]["holdout"],
+                                                   "after": after["alpha_hat_vs_camera"]["holdout"]}
+        if "resimulation" in before and "resimulation" in after:
+            gain["resimulation_holdout"] = {"before": before["resimulation"]["holdout"],
+                                            "after": after["resimulation"]["holdout"]}
+        findings.append({"effect": st.verdict if isinstance(st.verdict, list) else c.term.name,
+                         "cables": cables_of(c.fit, c.term), "joints": joints_of(c.fit, c.term),
+                         "parameters": term_parameters(ctx, c), "evidence": c.evidence(), "gain": gain,
+                         "step": i + 1, "model_after": c.fit.model.describe()})
+    series = {"alpha_hat": [a["series"] if a else None for a in alpha],
+              "resimulation": {k: v["series"] for k, v in resim.items()},
+              "cv_residuals": [e.cv for e in evaluated], "labels": [f.model.describe() for f in fits]}
+    return Diagnosis(source, model, split, tuple(steps), tuple(findings), summaries[0], summaries[-1],
+                     extended_dict(fits[-1], data.params), timings, data, series, s)
+
+
+def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, params: NeckParams | None = None,
+                 progress: bool = False) -> Diagnosis:
+    """:func:`diagnose` on a :class:`neck_sim.logs.Log` or a path: measured topics and the ``neck``
+    record only (``/neck/truth``, ``/neck/reference``, ``/neck/estimate`` and the ``run`` record are
+    never read)."""
+    from neck_sim.logs import Log, read_log
+
+    s = settings or DiagnosisSettings()
+    if not isinstance(log, Log):
+        log = read_log(log, topics=("motors", "camera"), require=("motors", "camera"))
+    t0 = time.perf_counter()
+    with single_thread():
+        data = MeasuredData(Measurements.from_log(log), params or log.params, s.preprocess)
+    t_prep = time.perf_counter() - t0
+    diag = diagnose(data, model, s, progress=progress, source=os.fspath(log.path))
+    diag.timings["preprocessing"] = t_prep
+    return diag

@@ -1,0 +1,76 @@
+"""Diagnosis settings and the baseline model named on the command line (``--model``)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+
+from identification.candidates import EFFECTS, PAPER_MODEL, ModelSpec
+from identification.preprocessing import PreprocessSettings
+
+
+#: ``--model`` shortcuts (any comma-separated list of effect names is also accepted).
+MODEL_SHORTCUTS = {
+    "paper": PAPER_MODEL,
+    "rigid": (),                                   # rigid cables, no friction: eq (25)
+    "rigid-frictionless": (),
+    "rigid-friction": ("dry_friction",),
+    "linear": ("dry_friction", "cable_elasticity"),  # Table 1's constant stiffness
+}
+
+
+def parse_model(spec) -> ModelSpec:
+    """A model from a shortcut (:data:`MODEL_SHORTCUTS`), a comma-separated list of effect names,
+    a :class:`ModelSpec`, or a model JSON file written by a previous diagnosis (``model`` list)."""
+    if isinstance(spec, ModelSpec):
+        return spec
+    if spec is None:
+        return ModelSpec.of(*PAPER_MODEL)
+    s = str(spec).strip()
+    if s.endswith(".json") or os.path.sep in s:
+        try:
+            with open(s, "rb") as fh:
+                data = json.loads(fh.read())
+        except OSError as exc:
+            raise ValueError(f"--model {s}: cannot read ({exc.strerror})") from None
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--model {s}: not JSON ({exc})") from None
+        if not isinstance(data, dict) or "model" not in data:
+            raise ValueError(f"--model {s}: expected a model file written by 'neck-sim diagnose --extended' "
+                             f"(with a 'model' list of terms)")
+        return ModelSpec.from_list(data["model"])
+    if s in MODEL_SHORTCUTS:
+        return ModelSpec.of(*MODEL_SHORTCUTS[s])
+    names = [x.strip() for x in s.split(",") if x.strip() and x.strip() != "none"]
+    unknown = [x for x in names if x not in EFFECTS]
+    if unknown:
+        raise ValueError(f"model: unknown {', '.join(unknown)} (shortcuts: {', '.join(MODEL_SHORTCUTS)}; "
+                         f"effects: {', '.join(EFFECTS)})")
+    return ModelSpec.of(*names)
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Method settings of the diagnosis (see the module docstring)."""
+
+    moves_per_block: int = 3
+    holdout_every: int = 3
+    chunk_s: float = 0.25
+    min_improvement: float = 0.02
+    alpha: float = 0.01
+    max_steps: int = 3
+    candidates: tuple = EFFECTS
+    resimulate: bool = True
+    alpha_hat: bool = True
+    iterations: int = 3
+    preprocess: PreprocessSettings = field(default_factory=PreprocessSettings)
+
+    def __post_init__(self):
+        if self.moves_per_block < 1 or self.holdout_every < 2:
+            raise ValueError("moves_per_block must be >= 1 and holdout_every >= 2")
+        if not (0 < self.alpha < 1 and 0 <= self.min_improvement < 1 and self.chunk_s > 0):
+            raise ValueError("alpha in (0, 1), min_improvement in [0, 1), chunk_s > 0")
+        unknown = [c for c in self.candidates if c not in EFFECTS]
+        if unknown:
+            raise ValueError(f"candidates: unknown {unknown}")

@@ -1,0 +1,101 @@
+"""``dry_friction``: arctan dry friction at the geared motors, eq (37) -- in the paper's model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from neck_sim.effects.base import Column, Hidden, MotorEffect, Shape, finite, indices, per_item
+from neck_sim.params import NeckParams
+
+__all__ = ["DryFriction"]
+
+
+@dataclass(frozen=True)
+class DryFriction(MotorEffect):
+    """Arctan dry friction at the geared motors, eq (37) -- baseline (``params.friction``).
+
+    f = (2/pi) arctan(c_s theta_dot) f_s, force along the cable (N) resisting the motor speed
+    theta_dot (rad/s at the motor shaft).  ``f_s`` (N, per cable) and ``c_s`` (s/rad) override
+    ``params.friction`` when the effect is given to a plant; ``None`` keeps the parameter.
+    """
+
+    name: ClassVar[str] = "dry_friction"
+    description: ClassVar[str] = "arctan dry friction at the motors, eq (37)"
+    baseline: ClassVar[bool] = True
+    magnitude_field: ClassVar[str] = "f_s"
+    columns: ClassVar[tuple] = (Column("f_s", "N"),)
+    shapes: ClassVar[tuple] = (Shape("c_s", "s/rad", default=0.5, grid=(0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
+                                     refine="log", span=2.0),)
+    blind_magnitude: ClassVar[float] = 12.0     # N, f_s on one cable (baseline without friction)
+    f_s: tuple | float | None = None
+    c_s: float | None = None
+    cables: tuple | None = None
+
+    def __post_init__(self):
+        if self.f_s is not None:
+            object.__setattr__(self, "f_s", per_item("dry_friction.f_s", self.f_s, non_negative=True))
+        if self.c_s is not None:
+            object.__setattr__(self, "c_s", finite("dry_friction.c_s", self.c_s, positive=True))
+        object.__setattr__(self, "cables", indices("dry_friction.cables", self.cables))
+
+    @classmethod
+    def from_params(cls, params: NeckParams) -> "DryFriction":
+        return cls(f_s=params.friction.f_s, c_s=params.friction.c_s)
+
+    def resolved(self, params: NeckParams) -> tuple[np.ndarray, float]:
+        """(f_s (N+1,), c_s) after applying this override to ``params``."""
+        fs = np.asarray(params.friction.f_s, dtype=float).copy()
+        if self.f_s is not None:
+            idx = np.arange(params.n_cables) if self.cables is None else np.asarray(self.cables)
+            fs[idx] = self.f_s
+        return fs, (params.friction.c_s if self.c_s is None else self.c_s)
+
+    def apply(self, params: NeckParams) -> NeckParams:
+        fs, cs = self.resolved(params)
+        return params.replace(**{"friction.f_s": tuple(fs), "friction.c_s": cs})
+
+    def motor_force(self, theta_dot, tension=None, params: NeckParams | None = None):
+        if params is None and (self.f_s is None or self.c_s is None):
+            raise ValueError("dry_friction.motor_force: needs params when f_s or c_s is not set")
+        fs, cs = self.resolved(params) if params is not None else (np.asarray(self.f_s, float), self.c_s)
+        return (2 / np.pi) * np.arctan(cs * np.asarray(theta_dot, dtype=float)) * fs
+
+    def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
+        """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., N+1)."""
+        cs = self.c_s if self.c_s is not None else params.friction.c_s
+        return (2 / np.pi) * np.arctan(cs * np.asarray(theta_dot, dtype=float))
+
+    # the plant applies eq (37) from params.friction (apply); no extra native force
+    @classmethod
+    def to_plant(cls, params, values, shape):
+        return cls(f_s=tuple(np.clip(values["f_s"], 0.0, None)), c_s=shape["c_s"]).apply(params), None
+
+    @classmethod
+    def when_absent(cls, params, elastic):
+        return params.replace(**{"friction.f_s": (0.0,) * params.n_cables})
+
+    @classmethod
+    def blind_forms(cls):
+        return {cls.name: (cls.blind_magnitude, cls.hide), cls.name + ":tanh": (cls.blind_magnitude, cls.hide_tanh)}
+
+    @classmethod
+    def hide(cls, params, rng, magnitude, cable, joint):
+        """A sharper sign than eq (37)'s c_s = 0.5, on one cable only, against a friction-free model."""
+        cs = float(rng.uniform(2.0, 6.0))
+        plant = cls.when_absent(params, True)
+        desc = f"dry friction {magnitude:.2f} N, c_s = {cs:.2f} s/rad, on cable {cable + 1} only"
+        return Hidden(plant, (cls(f_s=magnitude, c_s=cs, cables=(cable,)),), (cable,), (), desc, cls.name)
+
+    @classmethod
+    def hide_tanh(cls, params, rng, magnitude, cable, joint):
+        """A tanh-smoothed sign (the plant's Stribeck term with an infinite Stribeck speed), one cable."""
+        from neck_sim.effects.stribeck_friction import StribeckFriction
+
+        smooth = float(rng.uniform(0.2, 1.0))
+        plant = cls.when_absent(params, True)
+        eff = StribeckFriction(df=magnitude, speed=1e6, smoothing=smooth, cables=(cable,))
+        desc = f"dry friction {magnitude:.2f} N with a tanh sign (smoothing {smooth:.2f} rad/s) on cable {cable + 1} only"
+        return Hidden(plant, (eff,), (cable,), (), desc, cls.name)
