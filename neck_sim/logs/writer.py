@@ -21,6 +21,7 @@ import sys
 
 import numpy as np
 import orjson
+from mcap.opcode import Opcode
 from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 
@@ -104,6 +105,25 @@ def _run_record(run_info: dict | None) -> dict[str, str]:
 def _jsonable(value):
     """numpy scalars/arrays as numbers/lists, anything else by its str()."""
     return value.tolist() if hasattr(value, "tolist") else str(value)
+
+
+def _chunk_parts(writer: Writer):
+    """(chunk builder, statistics, maybe-finalize) of an mcap Writer, or None if its internals differ."""
+    parts = tuple(getattr(writer, f"_Writer__{name}", None)
+                  for name in ("chunk_builder", "statistics", "maybe_finalize_chunk"))
+    return None if any(p is None for p in parts) else parts
+
+
+class _PackedMessageIndex(MessageIndex):
+    """A MessageIndex record that serialises its (log_time, offset) pairs in one numpy call
+    (the library packs each number separately: about 6 us per message)."""
+
+    def write(self, stream) -> None:
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write2(self.channel_id)
+        stream.write4(len(self.records) * 16)
+        stream.write(np.asarray(self.records, dtype="<u8").reshape(-1).tobytes())
+        stream.finish_record()
 
 
 class LogWriter:
@@ -288,7 +308,7 @@ class LogWriter:
                 raise ValueError(f"{spec.topic}: {fname} must have shape ({len(t)}, {n}), got {arr.shape}")
             if not np.all(np.isfinite(arr)):
                 bad = int(np.argmax(~np.isfinite(arr).all(axis=1)))
-                raise ValueError(f"{spec.topic}: {fname} contains NaN or infinity at t = {t[bad]!r} s")
+                raise ValueError(f"{spec.topic}: {fname} contains NaN or infinity at t = {float(t[bad])!r} s")
             cols.append(arr)
         if len(t) == 0:
             return
@@ -298,7 +318,7 @@ class LogWriter:
         steps = np.diff(ns, prepend=ns[0] - 1 if last is None else last)
         if np.any(steps <= 0):
             i = int(np.argmax(steps <= 0))
-            raise ValueError(f"{spec.topic}: time must increase, got t = {t[i]!r} s after an earlier sample")
+            raise ValueError(f"{spec.topic}: time must increase, got t = {float(t[i])!r} s after an earlier sample")
         self._encode(spec, np.concatenate(cols, axis=1), ns)
         self._last_ns[spec.topic] = int(ns[-1])
         self.counts[spec.topic] += len(t)
@@ -337,14 +357,13 @@ class LogWriter:
         ``add_message`` would (with an mcap whose internals differ, add_message is used).
         """
         w = self._writer
-        builder = getattr(w, "_Writer__chunk_builder", None)
-        stats = getattr(w, "_Writer__statistics", None)
-        finalize = getattr(w, "_Writer__maybe_finalize_chunk", None)
         ends = np.append(offsets[1:], len(records))
-        if builder is None or stats is None or finalize is None:
+        parts = _chunk_parts(w)
+        if parts is None:
             for off, end, t in zip(offsets.tolist(), ends.tolist(), ns.tolist()):
                 w.add_message(ch, t, records[off + _MESSAGE_HEADER: end].tobytes(), t)
             return
+        builder, stats, finalize = parts
         i = 0
         while i < len(ns):
             room = max(self._chunk_size - builder.count, 1)
@@ -353,7 +372,7 @@ class LogWriter:
             builder.record_writer.write(records[offsets[i]: ends[j - 1]].tobytes())
             index = builder.message_indices.get(ch)
             if index is None:
-                index = builder.message_indices[ch] = MessageIndex(channel_id=ch, records=[])
+                index = builder.message_indices[ch] = _PackedMessageIndex(channel_id=ch, records=[])
             index.records.extend(zip(ns[i:j].tolist(), (offsets[i:j] + base).tolist()))
             lo, hi = int(ns[i:j].min()), int(ns[i:j].max())
             builder.message_start_time = lo if builder.num_messages == 0 else min(lo, builder.message_start_time)
