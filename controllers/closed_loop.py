@@ -1,13 +1,15 @@
 """The experiment runner: a plant, a controller and a trajectory, closed loop at the control rate.
 
-``run_closed_loop`` is the one place where experiments happen (control tests, identification
-data, reproductions).  Each control period k (t_k = k / rate):
+``run_lockstep`` is the one place where experiments happen (control tests, identification
+data, reproductions); ``run_closed_loop`` is its single-run case.  Each control period k
+(t_k = k / rate), for K independent runs at once:
 
-    theta_k = plant.encoders();   step = controller.step(theta_k, reference_k)
-    plant.step(step.forces);      frame = plant.camera_frame()
+    theta_k = plant.encoders() for each run;   one compiled controller step for all K runs
+    plant.step(forces) for each run;          frame = plant.camera_frame()
 
 and everything is recorded -- the measured topics (motors, camera, reference, estimate) and the
-simulation truth -- to arrays and, if asked, to an MCAP log through :class:`neck_sim.logs.LogWriter`.
+simulation truth -- to arrays and, if asked, to an MCAP log written in bulk from those arrays
+when the run ends (:meth:`neck_sim.logs.LogWriter.write_batch`).
 
 The metrics are the paper's (§7, Table 3), in degrees, averaged over every sample and joint:
 
@@ -223,45 +225,47 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     theta = np.empty((K, n + 1))
     cameras = [([], []) for _ in range(K)]
     errors: list = [None] * K
-    live = list(range(K))
     writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
     forces = output_slices(n)["forces"]
+    status = state.status
+    # per run: its index, plant, recording rows and commanded-force rows (views, bound once)
+    live = [(i, plants[i], recs[i]["t"], recs[i]["theta"], recs[i]["alpha"], recs[i]["alpha_dot"], recs[i]["tension"],
+             recs[i]["elongation"], recs[i]["loop_gap"], outs[i][:, forces], cameras[i]) for i in range(K)]
     try:
         desc = trajectories[0].name + (f" law {int(controllers[0].law)}" if K == 1 else f" x {K}")
         bar = tqdm(range(steps), desc=desc, unit="step", disable=not progress, mininterval=0.5)
         for k in bar:
-            truths = []
-            for i in live:
-                rec, plant = recs[i], plants[i]
-                rec["t"][k] = plant.time
-                rec["theta"][k] = theta[i] = plant.encoders()
-                truths.append(plant.truth())
+            for i, plant, r_t, r_theta, *_ in live:
+                r_t[k] = plant.time
+                r_theta[k] = theta[i] = plant.encoders()
             advance(state, theta, k, tables, outs)
-            for i, truth in zip(live, truths):
-                rec = recs[i]
-                rec["alpha"][k] = truth.alpha
-                rec["alpha_dot"][k] = truth.alpha_dot
-                rec["tension"][k] = truth.tension
-                rec["elongation"][k] = truth.elongation
-                rec["loop_gap"][k] = truth.loop_gap
+            failed = False
+            for i, plant, r_t, _, r_alpha, r_alpha_dot, r_tension, r_elong, r_gap, f, camera in live:
+                truth = plant.truth()
+                r_alpha[k] = truth.alpha
+                r_alpha_dot[k] = truth.alpha_dot
+                r_tension[k] = truth.tension
+                r_elong[k] = truth.elongation
+                r_gap[k] = truth.loop_gap
                 try:
-                    if state.status[i]:
-                        raise step_error(int(state.status[i]), outs[i, k, :n], controllers[i].params.geometry.alpha_max)
-                    plants[i].step(outs[i, k, forces])
+                    if status[i]:
+                        raise step_error(int(status[i]), outs[i, k, :n], controllers[i].params.geometry.alpha_max)
+                    plant.step(f[k])
                 except (ValueError, RuntimeError) as exc:
-                    err = RuntimeError(f"closed loop stopped at t = {rec['t'][k]:.3f} s: {exc}")
+                    err = RuntimeError(f"closed loop stopped at t = {r_t[k]:.3f} s: {exc}")
                     if stop_on_error:
                         raise err from exc
                     err.__cause__ = exc
                     errors[i] = err
-                    state.status[i] = state.status[i] or -1        # the controller stops with its plant
+                    status[i] = status[i] or -1           # the controller stops with its plant
+                    failed = True
                     continue
-                frame = plants[i].camera_frame()
+                frame = plant.camera_frame()
                 if frame is not None:
-                    cameras[i][0].append(frame[0])
-                    cameras[i][1].append(frame[1])
-            if any(errors[i] is not None for i in live):
-                live = [i for i in live if errors[i] is None]
+                    camera[0].append(frame[0])
+                    camera[1].append(frame[1])
+            if failed:
+                live = [run for run in live if errors[run[0]] is None]
         bar.close()
         results = []
         for i in range(K):

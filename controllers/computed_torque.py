@@ -17,6 +17,11 @@ The three laws of §6.3: law 1 leaves friction out of (66) and (65) and assumes 
 cables; law 2 adds friction; law 3 adds the variable-stiffness cable model (model 2) to the
 estimator only.
 
+Steps 1-4 run as one compiled call (numba, :mod:`neck_sim.jit`) built from the same formula
+kernels the numpy API of :mod:`neck_sim.analytic` and :mod:`controllers.tension` calls; the state
+of K controllers is stacked in a :class:`ControllerState` so that lockstep batches
+(:func:`controllers.closed_loop.run_lockstep`) advance in one call.
+
 The controller's *model* is separate from the plant's truth: ``params`` holds what the controller
 knows of the neck (geometry -- set ``geometry.r = 0`` for a controller that ignores the pulleys --,
 actuation, springs, inertia, gains); friction ``f_s`` and cable coefficients are constructor
