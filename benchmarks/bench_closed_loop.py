@@ -34,6 +34,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from bench_analytic import best_of as best_cpu  # noqa: E402  (benchmarks/ is on sys.path as a script)
 from bench_plant import bare_loop, forces, plant_loop  # noqa: E402
 from controllers.closed_loop import run_closed_loop, run_lockstep  # noqa: E402
 from controllers.computed_torque import ComputedTorqueController, reference_table  # noqa: E402
@@ -47,12 +48,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 def best_of(fun, repeat: int) -> float:
     """Least CPU time (s) of ``repeat`` calls: what one core spends, whatever else shares it."""
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fun()
-        best = min(best, time.process_time() - t0)
-    return best
+    return best_cpu(fun, repeat, time.process_time)
 
 
 def control_step_us(params, traj, repeat: int) -> float:

@@ -188,8 +188,9 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     log_paths = [None] * K if log_paths is None else list(log_paths)
     run_infos = [None] * K if run_infos is None else list(run_infos)
     if K == 0 or not (len(controllers) == len(trajectories) == len(log_paths) == len(run_infos) == K):
+        sizes = [K, len(controllers), len(trajectories), len(log_paths), len(run_infos)]
         raise ValueError(f"lockstep: need as many controllers, trajectories, log paths and run infos as plants "
-                         f"(>= 1), got {K}, {len(controllers)}, {len(trajectories)}, {len(log_paths)}, {len(run_infos)}")
+                         f"(>= 1), got {sizes}")
     n = controllers[0].params.n_joints
     rate = controllers[0].params.control.rate_hz
     steps = None

@@ -419,5 +419,5 @@ class LogWriter:
                     ch = self._channel(topic, "foxglove.FrameTransforms", foxglove.FRAME_TRANSFORMS_SCHEMA)
                 else:
                     ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
-                self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON, as json.dumps(separators=(',', ':'))
+                self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON
                 self.counts[topic] += 1
