@@ -54,33 +54,31 @@ def _one(job):
     f = diag.findings[0] if diag.findings else None
     where = None
     if f is not None:
-        where = f.get("joints") or f.get("cables")
+        where = f.joints or f.cables
     truth_where = [j + 1 for j in case.joints] or [c + 1 for c in case.cables] or None
     return {"case": name, "seed": seed, "level": level, "expect": case.expect, "magnitude": case.magnitude,
             "nominal_magnitude": MAGNITUDES.get(name, 0.0) * level, "description": case.description,
             "verdict": v if isinstance(v, str) else "ambiguous:" + "+".join(v),
-            "improvement": f["evidence"]["holdout_improvement"] if f else
+            "improvement": f.evidence.improvement if f else
             max((c.improvement for c in diag.steps[0].candidates), default=0.0),
-            "located": (where == truth_where) if (f and truth_where and case.expect in ("dry_friction",
-                                                   "viscous_friction", "stribeck_friction", "pulley_friction",
-                                                   "pretension", "spring_error")) else None,
+            # located: effects hidden on one cable or joint (not those on every cable, nor payload or delay)
+            "located": (where == truth_where) if (f and truth_where and len(truth_where) == 1) else None,
             "t_sim": t_sim, "t_diag": t_diag}
 
 
 def _units(name: str) -> str:
-    return {"dry_friction": "N", "dry_friction:tanh": "N", "viscous_friction": "N s/rad", "stribeck_friction": "N",
-            "pulley_friction": "", "cable_elasticity": "x Table 2 k", "tension_stiffening": "x Table 2 lambda",
-            "payload": "kg", "spring_error": "relative", "actuation_delay": "s", "pretension": "m"}.get(name, "")
+    from identification.blind import blind_forms
+
+    form = blind_forms().get(name)
+    return form[0].blind_unit if form else ""
 
 
 def confusion_tables(results, levels) -> str:
-    from identification.candidates import EFFECTS
+    from neck_sim import effects
 
-    cols = ["none"] + list(EFFECTS) + ["ambiguous"]
-    short = {"none": "none", "dry_friction": "dry", "viscous_friction": "visc", "stribeck_friction": "strib",
-             "pulley_friction": "pulley", "cable_elasticity": "elast", "tension_stiffening": "stiff",
-             "payload": "payload", "spring_error": "spring", "actuation_delay": "delay", "pretension": "pret",
-             "ambiguous": "ambig"}
+    cols = [effects.NONE] + list(effects.names()) + ["ambiguous"]
+    short = {effects.NONE: "none", "ambiguous": "ambig",
+             **{c.name: c.abbreviation or c.name for c in effects.registered()}}
     out = []
     cases = list(dict.fromkeys(r["case"] for r in results))
     for level in levels:
@@ -204,6 +202,7 @@ def story(progress: bool = True) -> str:
     from controllers.computed_torque import ComputedTorqueController
     from controllers.trajectories import identification_trajectory
     from identification.diagnosis import DiagnosisSettings, diagnose_log
+    from neck_sim.effects import CableElasticity, DryFriction, TensionStiffening
     from neck_sim.params import default_params
     from neck_sim.plant import Plant
 
@@ -217,23 +216,23 @@ def story(progress: bool = True) -> str:
         t_diag = time.perf_counter() - t0
     lines = [f"\n**The paper's story** (identification trajectory, 85 s, law 1, default plant; diagnosis from the "
              f"rigid frictionless model in {t_diag:.0f} s): steps "
-             + " -> ".join(f"`{f['effect']}`" for f in diag.findings) + f" -> `{diag.steps[-1].verdict}`\n",
+             + " -> ".join(f"`{f.effect}`" for f in diag.findings) + f" -> `{diag.steps[-1].verdict}`\n",
              "| step | effect | held-out improvement | identified | plant |", "|---|---|---|---|---|"]
-    truth = {"dry_friction": ("f_s", p.friction.f_s), "cable_elasticity": ("k", p.cables.k_linear),
-             "tension_stiffening": ("lambda", p.cables.lam)}
+    truth = {DryFriction.name: ("f_s", p.friction.f_s), CableElasticity.name: ("k", p.cables.k_linear),
+             TensionStiffening.name: ("lambda", p.cables.lam)}
     for f in diag.findings:
-        sym, ref = truth.get(f["effect"], (None, None))
-        vals = [v["value"] for k, v in f["parameters"].items() if sym and k.split("(")[0] == sym]
+        sym, ref = truth.get(f.effect, (None, None))
+        vals = [v.value for k, v in f.parameters.items() if sym and k.split("(")[0] == sym]
         ident = ", ".join(f"{v:.4g}" for v in vals)
         plant = ", ".join(f"{v:.4g}" for v in ref) if ref is not None else ""
-        if f["effect"] == "cable_elasticity":
+        if f.effect == CableElasticity.name:
             plant = "(Table 1, linear fit of the paper: " + plant + ")"
-        lines.append(f"| {f['step']} | {f['effect']} | {100 * f['evidence']['holdout_improvement']:.1f} % | "
+        lines.append(f"| {f.step} | {f.effect} | {100 * f.evidence.improvement:.1f} % | "
                      f"{sym}: {ident} | {plant} |")
     b, a = diag.baseline, diag.final
     lines.append(f"\nalpha_hat against the camera (held out, mean |error|): "
-                 f"{b['alpha_hat_vs_camera']['holdout']['mean_abs_deg']:.2f} deg (rigid) -> "
-                 f"{a['alpha_hat_vs_camera']['holdout']['mean_abs_deg']:.2f} deg (final); paper (eq 35): 2.79 -> 1.36 deg")
+                 f"{b.alpha_hat_vs_camera.holdout.mean_abs_deg:.2f} deg (rigid) -> "
+                 f"{a.alpha_hat_vs_camera.holdout.mean_abs_deg:.2f} deg (final); paper (eq 35): 2.79 -> 1.36 deg")
     return "\n".join(lines)
 
 

@@ -73,7 +73,7 @@ class RunResult:
     """Arrays of one closed-loop run (T control samples, C camera frames) and its metrics.
 
     t (T,) s; alpha_d, alpha_hat, alpha, alpha_dot (T, N); theta, force, requested, saturated,
-    elongation_hat, tension, elongation (T, N+1); gamma (T, N) N m; loop_gap (T,) m;
+    elongation_hat, tension, elongation (T, m) (m cables); gamma (T, N) N m; loop_gap (T,) m;
     camera_t (C,), camera_alpha (C, N).
     """
 

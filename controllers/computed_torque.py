@@ -333,9 +333,12 @@ class ComputedTorqueController:
             raise ValueError(f"law: expected 1, 2 or 3 (the tests of §6.3), got {law!r}") from None
         p = self.params
         n = p.n_joints
-        if p.n_cables != n + 1:
-            raise ValueError(f"params: the tension distribution of eqs (63)-(65) needs N + 1 = {n + 1} cables, "
-                             f"the routing has {p.n_cables}")
+        if not p.routing.is_paper_kind(n):
+            raise ValueError(
+                f"ComputedTorqueController: the paper's control laws (tension distribution of eqs 63-65) need the "
+                f"paper's kind of routing -- N right cables, cable j strut-routed below joint j and attached at D_j, "
+                f"plus one long left cable ({n + 1} cables for N = {n}); this neck's routing differs "
+                f"({p.n_cables} cables:\n{p.routing.describe()})")
         self.cable_model = self.law.default_cable_model if cable_model is None else CableModel(cable_model)
         paper = default_params(n)
         self.f_s = np.asarray(paper.friction.f_s if f_s is None else f_s, dtype=float)

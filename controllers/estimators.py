@@ -140,7 +140,7 @@ class JointAngleEstimator:
         n = params.n_joints
         self.alpha_hat = np.zeros(n)
         self.theta = None
-        self.x = np.zeros(n + 1)
+        self.x = np.zeros(params.n_cables)
 
     def reset(self, alpha0=None, theta0=None) -> None:
         """Start at pose ``alpha0`` (default straight) with the cables unstretched.
@@ -150,8 +150,9 @@ class JointAngleEstimator:
         """
         n = self.params.n_joints
         self.alpha_hat = np.zeros(n) if alpha0 is None else _per_cable(alpha0, n, "alpha0")
-        self.theta = None if theta0 is None else _per_cable(theta0, n + 1, "theta0")
-        self.x = np.zeros(n + 1)
+        m = self.params.n_cables
+        self.theta = None if theta0 is None else _per_cable(theta0, m, "theta0")
+        self.x = np.zeros(m)
         if self.elongation is not None:
             self.elongation.reset()
 

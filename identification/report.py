@@ -22,6 +22,8 @@ import os
 
 import numpy as np
 
+from identification.diagnosis.result import method_text
+
 __all__ = ["write_report", "format_summary"]
 
 
@@ -34,50 +36,54 @@ def _fmt(v, unit: str = "", digits: int = 4) -> str:
 def _param_text(params: dict) -> str:
     parts = []
     for name, p in params.items():
-        s = p.get("sigma")
-        unit = p.get("unit", "")
-        unit = "" if unit in ("-", "") else f" {unit}"
-        parts.append(f"{name} = {_fmt(p['value'])}" + (f" ± {_fmt(s, digits=2)}" if s is not None else "") + unit)
+        unit = "" if p.unit in ("-", "") else f" {p.unit}"
+        parts.append(f"{name} = {_fmt(p.value)}" + (f" ± {_fmt(p.sigma, digits=2)}" if p.sigma is not None else "")
+                     + unit)
     return "; ".join(parts)
+
+
+def _where(f) -> str:
+    if f.joints:
+        return "joints " + ", ".join(map(str, f.joints))
+    if f.cables:
+        return "cables " + ", ".join(map(str, f.cables))
+    return ""
+
+
+#: Residual types in reports: attribute of ResidualRMS, label, scale to the unit shown, unit.
+_RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable tension", 1.0, "N"),
+              ("elongation_m", "cable elongation", 1e3, "mm"))
 
 
 def format_summary(diag) -> str:
     """A few lines for the terminal: verdict, findings and their gains."""
-    d = diag.to_dict()
-    lines = [f"diagnosis of {d['source'] or 'data'} from the model: {diag.steps[0].base.fit.model.describe()}",
-             f"verdict: {d['verdict']}"]
-    for f in d["findings"]:
-        ev = f["evidence"]
-        where = ""
-        if f.get("cables"):
-            where = " on cable(s) " + ", ".join(map(str, f["cables"]))
-        if f.get("joints"):
-            where = " on joint(s) " + ", ".join(map(str, f["joints"]))
-        lines.append(f"  step {f['step']}: {f['effect']}{where}: held-out (cross-validated) score "
-                     f"-{100 * ev['holdout_improvement']:.1f} % (p = {ev['p_holdout_wilcoxon']:.2g}, "
-                     f"F-test p = {ev['p_train_F']:.2g})")
-        lines.append(f"      {_param_text(f['parameters'])}")
-        g = f["gain"]["residual_rms_crossvalidated"]
-        for key, label, scale, unit in (("torque_Nm", "torque", 1.0, "N m"), ("elongation_m", "elongation", 1e3, "mm"),
-                                        ("tension_N", "tension", 1.0, "N")):
-            b, a = g["before"].get(key), g["after"].get(key)
+    lines = [f"diagnosis of {diag.source or 'data'} from the model: {diag.baseline.description}",
+             f"verdict: {diag.verdict}"]
+    for f in diag.findings:
+        ev = f.evidence
+        where = f" on {_where(f)}" if _where(f) else ""
+        lines.append(f"  step {f.step}: {f.effect}{where}: held-out (cross-validated) score "
+                     f"-{100 * ev.improvement:.1f} % (p = {ev.p_holdout:.2g}, F-test p = {ev.p_train:.2g})")
+        lines.append(f"      {_param_text(f.parameters)}")
+        before, after = f.gain.before.residual_rms_crossvalidated, f.gain.after.residual_rms_crossvalidated
+        for key, label, scale, unit in _RESIDUALS:
+            b, a = getattr(before, key), getattr(after, key)
             if b is None and a is None:
                 continue
             bs = "-" if b is None else ", ".join(f"{scale * x:.3g}" for x in b)
             as_ = "-" if a is None else ", ".join(f"{scale * x:.3g}" for x in a)
             lines.append(f"      {label} RMS ({unit}): [{bs}] -> [{as_}]")
-    for key, label in (("alpha_hat_vs_camera", "alpha_hat vs camera, held out, mean |error|"),):
-        b, a = d["baseline"].get(key), d["final"].get(key)
-        if b and a:
-            lines.append(f"  {label}: {b['holdout']['mean_abs_deg']:.2f} deg -> {a['holdout']['mean_abs_deg']:.2f} deg")
-    b, a = d["baseline"].get("resimulation"), d["final"].get("resimulation")
+    b, a = diag.baseline.alpha_hat_vs_camera, diag.final.alpha_hat_vs_camera
     if b and a:
-        lines.append(f"  re-simulation, held out: theta RMS {_vec(b['holdout']['theta_rms_rad'])} -> "
-                     f"{_vec(a['holdout']['theta_rms_rad'])} rad; alpha mean |error| "
-                     f"{_fmt(b['holdout']['alpha_mean_abs_deg'], digits=3)} -> "
-                     f"{_fmt(a['holdout']['alpha_mean_abs_deg'], digits=3)} deg ({b['status']} / {a['status']})")
-    t = d["timings_s"]
-    lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in t.items()))
+        lines.append(f"  alpha_hat vs camera, held out, mean |error|: {b.holdout.mean_abs_deg:.2f} deg -> "
+                     f"{a.holdout.mean_abs_deg:.2f} deg")
+    b, a = diag.baseline.resimulation, diag.final.resimulation
+    if b and a:
+        lines.append(f"  re-simulation, held out: theta RMS {_vec(b.holdout.theta_rms_rad)} -> "
+                     f"{_vec(a.holdout.theta_rms_rad)} rad; alpha mean |error| "
+                     f"{_fmt(b.holdout.alpha_mean_abs_deg, digits=3)} -> "
+                     f"{_fmt(a.holdout.alpha_mean_abs_deg, digits=3)} deg ({b.status} / {a.status})")
+    lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
 
 
@@ -98,9 +104,8 @@ def _residual_figure(diag, path: str, kind: str) -> str:
 
     data = diag.data
     n, C = data.n, data.C
-    res = diag.series["cv_residuals"]
-    base, final = res[0], res[-1]
-    labels = diag.series["labels"]
+    base, final = diag.baseline.cv_residuals, diag.final.cv_residuals
+    extended = len(diag.summaries) > 1
     t_hat = diag.steps[0].base.fit.tension_hat if diag.steps[0].base.fit.model.elastic else \
         diag.steps[-1].base.fit.tension_hat
     if kind == "torque":
@@ -124,12 +129,12 @@ def _residual_figure(diag, path: str, kind: str) -> str:
             x = xf(ch)
             if c == 0:
                 _shade(ax, diag.split, data.t)
-                ax.plot(x, scale * base[:, ch], color="0.5", lw=0.7, label=f"baseline: {labels[0]}")
-                if len(res) > 1:
-                    ax.plot(x, scale * final[:, ch], color="C3", lw=0.7, label=f"final: {labels[-1]}")
+                ax.plot(x, scale * base[:, ch], color="0.5", lw=0.7, label=f"baseline: {diag.baseline.description}")
+                if extended:
+                    ax.plot(x, scale * final[:, ch], color="C3", lw=0.7, label=f"final: {diag.final.description}")
             else:
                 ax.plot(x, scale * base[:, ch], ".", color="0.6", ms=1.5)
-                if len(res) > 1:
+                if extended:
                     ax.plot(x, scale * final[:, ch], ".", color="C3", ms=1.5)
             ax.axhline(0, color="k", lw=0.5)
             if r == len(chans) - 1:
@@ -156,7 +161,7 @@ def _candidates_figure(diag, path: str) -> str:
         vals = [100 * max(c.improvement, -20) if math.isfinite(c.improvement) else 0 for c in cands]
         colors = ["C2" if c.significant else ("C1" if not c.valid else "0.6") for c in cands]
         ax.barh([c.term.name for c in cands], vals, color=colors)
-        ax.axvline(100 * (diag.settings.min_improvement if diag.settings else 0.02), color="k", ls="--", lw=0.8)
+        ax.axvline(100 * diag.settings.min_improvement, color="k", ls="--", lw=0.8)
         ax.set_title(f"step {i + 1}: {st.verdict}", fontsize=9)
         ax.set_xlabel("held-out improvement (%)")
         ax.tick_params(labelsize=7)
@@ -167,21 +172,27 @@ def _candidates_figure(diag, path: str) -> str:
     return path
 
 
+def _compared(diag, attr: str) -> list:
+    """[(label, colour, result)] of the baseline and the final model where they have ``attr``."""
+    out = [("baseline: " + diag.baseline.description, "0.5", getattr(diag.baseline, attr))]
+    if len(diag.summaries) > 1:
+        out.append(("final: " + diag.final.description, "C3", getattr(diag.final, attr)))
+    return [(label, colour, r) for label, colour, r in out if r is not None]
+
+
 def _alpha_figure(diag, path: str) -> str | None:
     import matplotlib.pyplot as plt
 
-    series = diag.series.get("alpha_hat") or []
-    if not series or series[0] is None:
+    curves = _compared(diag, "alpha_hat_vs_camera")
+    if not curves:
         return None
     n = diag.data.n
     fig, axes = plt.subplots(n, 1, figsize=(12, 2.2 * n + 0.6), sharex=True, squeeze=False)
-    labels = diag.series["labels"]
     for j in range(n):
         ax = axes[j, 0]
         _shade(ax, diag.split, None)
-        ax.plot(series[0]["t"], series[0]["error_deg"][:, j], color="0.5", lw=0.7, label=f"baseline: {labels[0]}")
-        if len(series) > 1:
-            ax.plot(series[-1]["t"], series[-1]["error_deg"][:, j], color="C3", lw=0.7, label=f"final: {labels[-1]}")
+        for label, colour, r in curves:
+            ax.plot(r.t, r.error_deg[:, j], color=colour, lw=0.7, label=label)
         ax.set_ylabel(f"joint {j + 1} (deg)")
         ax.axhline(0, color="k", lw=0.5)
     axes[0, 0].legend(fontsize=7)
@@ -196,27 +207,23 @@ def _alpha_figure(diag, path: str) -> str | None:
 def _resim_figure(diag, path: str) -> str | None:
     import matplotlib.pyplot as plt
 
-    rs = diag.series.get("resimulation") or {}
-    if not rs:
+    curves = _compared(diag, "resimulation")
+    if not curves:
         return None
-    keys = sorted(rs)
     data = diag.data
     fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
-    labels = diag.series["labels"]
-    for idx, color in zip(keys, ("0.5", "C3")):
-        s = rs[idx]
-        lab = labels[idx] if idx < len(labels) else str(idx)
+    for label, colour, r in curves:
         for j in range(data.C):
-            axes[0].plot(s["t"], s["theta_error"][:, j], color=color, lw=0.6, alpha=0.4 + 0.15 * j,
-                         label=lab if j == 0 else None)
+            axes[0].plot(r.t, r.theta_error[:, j], color=colour, lw=0.6, alpha=0.4 + 0.15 * j,
+                         label=label if j == 0 else None)
         for j in range(data.n):
-            axes[1].plot(s["t_camera"], s["alpha_error_deg"][:, j], color=color, lw=0.6, label=lab if j == 0 else None)
+            axes[1].plot(r.t_camera, r.alpha_error_deg[:, j], color=colour, lw=0.6, label=label if j == 0 else None)
     for ax, key in zip(axes, ("theta_error", "alpha_error_deg")):
         _shade(ax, diag.split, None)
         ax.axhline(0, color="k", lw=0.5)
         ax.legend(fontsize=7)
         # a diverging model blows up just before it stops: keep the scale of the rest
-        vals = np.concatenate([np.abs(rs[i][key]).ravel() for i in keys])
+        vals = np.concatenate([np.abs(getattr(r, key)).ravel() for _, _, r in curves])
         vals = vals[np.isfinite(vals)]
         if vals.size:
             lim = 1.5 * float(np.percentile(vals, 98)) + 1e-9
@@ -233,12 +240,11 @@ def _resim_figure(diag, path: str) -> str | None:
 
 # ----------------------------------------------------------------------------------------- markdown
 
-def _rms_rows(before: dict, after: dict) -> list[str]:
+def _rms_rows(before, after) -> list[str]:
+    """Table rows of two ResidualRMS, channel by channel."""
     rows = []
-    for key, label, scale, unit in (("torque_Nm", "joint torque", 1.0, "N m"),
-                                    ("tension_N", "cable tension", 1.0, "N"),
-                                    ("elongation_m", "cable elongation", 1e3, "mm")):
-        b, a = before.get(key), after.get(key)
+    for key, label, scale, unit in _RESIDUALS:
+        b, a = getattr(before, key), getattr(after, key)
         if b is None and a is None:
             continue
         for i in range(len(b if b is not None else a)):
@@ -250,53 +256,54 @@ def _rms_rows(before: dict, after: dict) -> list[str]:
     return rows
 
 
+def _alpha_row(label: str, where: str, b, a) -> str:
+    """A table row of two AngleErrors (mean |error|)."""
+    return (f"| {label} | {where} | {b.mean_abs_deg:.3f} | {a.mean_abs_deg:.3f} | "
+            f"{a.mean_abs_deg / b.mean_abs_deg:.2f} |")
+
+
 def _markdown(diag, figures: dict) -> str:
-    d = diag.to_dict()
-    L = [f"# Diagnosis of `{os.path.basename(d['source']) or 'data'}`", "",
-         f"Baseline model: **{diag.steps[0].base.fit.model.describe()}**.", "",
-         f"## Verdict: `{d['verdict']}`", ""]
-    if d["findings"]:
+    L = [f"# Diagnosis of `{os.path.basename(diag.source) or 'data'}`", "",
+         f"Baseline model: **{diag.baseline.description}**.", "",
+         f"## Verdict: `{diag.verdict}`", ""]
+    if diag.findings:
         L += ["| step | effect | where | parameters | held-out improvement | p (Wilcoxon, held out) | p (F, train) |",
               "|---|---|---|---|---|---|---|"]
-        for f in d["findings"]:
-            where = ("cables " + ", ".join(map(str, f["cables"]))) if f.get("cables") else \
-                (("joints " + ", ".join(map(str, f["joints"]))) if f.get("joints") else "all")
-            ev = f["evidence"]
-            L.append(f"| {f['step']} | {f['effect']} | {where} | {_param_text(f['parameters'])} | "
-                     f"{100 * ev['holdout_improvement']:.1f} % | {ev['p_holdout_wilcoxon']:.2g} | {ev['p_train_F']:.2g} |")
+        for f in diag.findings:
+            ev = f.evidence
+            L.append(f"| {f.step} | {f.effect} | {_where(f) or 'all'} | {_param_text(f.parameters)} | "
+                     f"{100 * ev.improvement:.1f} % | {ev.p_holdout:.2g} | {ev.p_train:.2g} |")
         L.append("")
     else:
         L += ["No candidate effect improves the held-out prediction significantly: the model explains the data "
               "to within its noise.", ""]
-    for f in d["findings"]:
-        L += [f"### Gain of step {f['step']} ({f['effect']}), cross-validated residual RMS", "",
+    for f in diag.findings:
+        L += [f"### Gain of step {f.step} ({f.effect}), cross-validated residual RMS", "",
               "| residual | channel | before | after | after/before |", "|---|---|---|---|---|"]
-        g = f["gain"]["residual_rms_crossvalidated"]
-        L += _rms_rows(g["before"], g["after"])
-        a = f["gain"].get("alpha_hat_vs_camera_holdout")
-        if a:
-            L.append(f"| alpha_hat - camera, held out (deg, mean abs) | all | {a['before']['mean_abs_deg']:.3f} | "
-                     f"{a['after']['mean_abs_deg']:.3f} | {a['after']['mean_abs_deg'] / a['before']['mean_abs_deg']:.2f} |")
+        g = f.gain
+        L += _rms_rows(g.before.residual_rms_crossvalidated, g.after.residual_rms_crossvalidated)
+        if g.before.alpha_hat_vs_camera and g.after.alpha_hat_vs_camera:
+            L.append(_alpha_row("alpha_hat - camera, held out (deg, mean abs)", "all",
+                                g.before.alpha_hat_vs_camera.holdout, g.after.alpha_hat_vs_camera.holdout))
         L.append("")
-    b, a = d["baseline"], d["final"]
+    b, a = diag.baseline, diag.final
     L += ["## Baseline vs final model (held-out data)", "",
-          f"Final model: **{a['description']}**.", "",
+          f"Final model: **{a.description}**.", "",
           "| residual | channel | baseline | final | final/baseline |", "|---|---|---|---|---|"]
-    L += _rms_rows(b["residual_rms_crossvalidated"], a["residual_rms_crossvalidated"])
-    if b.get("alpha_hat_vs_camera") and a.get("alpha_hat_vs_camera"):
-        bb, aa = b["alpha_hat_vs_camera"]["holdout"], a["alpha_hat_vs_camera"]["holdout"]
-        L.append(f"| alpha_hat - camera (deg, mean abs) | held out | {bb['mean_abs_deg']:.3f} | {aa['mean_abs_deg']:.3f} | "
-                 f"{aa['mean_abs_deg'] / bb['mean_abs_deg']:.2f} |")
-    if b.get("resimulation") and a.get("resimulation"):
-        bb, aa = b["resimulation"]["holdout"], a["resimulation"]["holdout"]
-        for j in range(len(bb["theta_rms_rad"] or aa["theta_rms_rad"] or [])):
-            bv = bb["theta_rms_rad"][j] if bb["theta_rms_rad"] else None
-            av = aa["theta_rms_rad"][j] if aa["theta_rms_rad"] else None
+    L += _rms_rows(b.residual_rms_crossvalidated, a.residual_rms_crossvalidated)
+    if b.alpha_hat_vs_camera and a.alpha_hat_vs_camera:
+        L.append(_alpha_row("alpha_hat - camera (deg, mean abs)", "held out", b.alpha_hat_vs_camera.holdout,
+                            a.alpha_hat_vs_camera.holdout))
+    if b.resimulation and a.resimulation:
+        bb, aa = b.resimulation.holdout, a.resimulation.holdout
+        for j in range(len(bb.theta_rms_rad or aa.theta_rms_rad or [])):
+            bv = bb.theta_rms_rad[j] if bb.theta_rms_rad else None
+            av = aa.theta_rms_rad[j] if aa.theta_rms_rad else None
             L.append(f"| re-simulation theta (rad RMS) | motor {j + 1} | {_fmt(bv)} | {_fmt(av)} | "
                      f"{_fmt(av / bv, digits=2) if bv and av else ''} |")
-        L.append(f"| re-simulation alpha - camera (deg, mean abs) | held out | {_fmt(bb['alpha_mean_abs_deg'])} | "
-                 f"{_fmt(aa['alpha_mean_abs_deg'])} | |")
-        L += ["", f"Re-simulation status: baseline {b['resimulation']['status']}; final {a['resimulation']['status']}."]
+        L.append(f"| re-simulation alpha - camera (deg, mean abs) | held out | {_fmt(bb.alpha_mean_abs_deg)} | "
+                 f"{_fmt(aa.alpha_mean_abs_deg)} | |")
+        L += ["", f"Re-simulation status: baseline {b.resimulation.status}; final {a.resimulation.status}."]
     L.append("")
     for key, title in (("torque", "Joint-torque residuals"), ("cable", "Cable residuals"),
                        ("candidates", "Candidates"), ("alpha", "alpha_hat against the camera"),
@@ -304,30 +311,30 @@ def _markdown(diag, figures: dict) -> str:
         if figures.get(key):
             L += [f"### {title}", "", f"![{title}]({os.path.basename(figures[key])})", ""]
     L += ["## Candidates per step", ""]
-    for s in d["steps"]:
-        L += [f"### Step {s['step']}: from {s['description']} -> `{s['verdict']}`", "",
+    for i, st in enumerate(diag.steps):
+        L += [f"### Step {i + 1}: from {st.base.fit.model.describe()} -> `{st.verdict}`", "",
               "| candidate | shape | held-out improvement | torque ratio | cable ratio | p (held out) | p (F) | "
               "added params | sign | significant |", "|---|---|---|---|---|---|---|---|---|---|"]
-        for c in s["candidates"]:
-            shape = ", ".join(f"{k}={_fmt(v)}" for k, v in (c.get("shape") or {}).items())
-            br = c.get("holdout_ratio_by_block") or {}
-            L.append(f"| {c['effect']} | {shape} | {100 * (c['holdout_improvement'] or 0):.1f} % | "
+        for c in sorted(st.candidates, key=lambda c: -c.improvement):
+            shape = ", ".join(f"{k}={_fmt(v)}" for k, v in c.term.shape)
+            br = c.block_ratio or {}
+            L.append(f"| {c.term.name} | {shape} | {100 * (c.improvement or 0):.1f} % | "
                      f"{_fmt(br.get('torque'), digits=3)} | {_fmt(br.get('cable'), digits=3)} | "
-                     f"{_fmt(c['p_holdout_wilcoxon'], digits=2)} | {_fmt(c['p_train_F'], digits=2)} | "
-                     f"{c['added_parameters']} | {'ok' if c['physical_sign'] else 'wrong'} | "
-                     f"{'**yes**' if c['significant'] else 'no'} |")
-        for p in s["pairwise"]:
-            if "error" in p:
+                     f"{_fmt(c.p_holdout, digits=2)} | {_fmt(c.p_train, digits=2)} | "
+                     f"{c.added_params} | {'ok' if c.valid else 'wrong'} | "
+                     f"{'**yes**' if c.significant else 'no'} |")
+        for t in st.pairwise:
+            if t.error:
                 continue
-            L.append(f"\nEncompassing test {p['a']} vs {p['b']}: {p['b']} adds to {p['a']}: "
-                     f"{p['b_adds_to_a']['improvement'] * 100:.1f} % (p {p['b_adds_to_a']['p_holdout']:.2g}), "
-                     f"{p['a']} adds to {p['b']}: {p['a_adds_to_b']['improvement'] * 100:.1f} % "
-                     f"(p {p['a_adds_to_b']['p_holdout']:.2g}).")
+            L.append(f"\nEncompassing test {t.a} vs {t.b}: {t.b} adds to {t.a}: "
+                     f"{t.b_adds_to_a.improvement * 100:.1f} % (p {t.b_adds_to_a.p_holdout:.2g}), "
+                     f"{t.a} adds to {t.b}: {t.a_adds_to_b.improvement * 100:.1f} % "
+                     f"(p {t.a_adds_to_b.p_holdout:.2g}).")
         L.append("")
-    sp = d["split"]
-    L += ["## Method", "", f"Split: {sp['method']}; {sp['chunks']} chunks for the paired test.", ""]
-    L += [f"- **{k}**: {v}" for k, v in d["method"].items()]
-    L += ["", "Time (s): " + ", ".join(f"{k} {v:.2f}" for k, v in d["timings_s"].items()), ""]
+    sp = diag.split
+    L += ["## Method", "", f"Split: {sp.method}; {sp.n_chunks} chunks for the paired test.", ""]
+    L += [f"- **{k}**: {v}" for k, v in method_text(diag.settings).items()]
+    L += ["", "Time (s): " + ", ".join(f"{k} {v:.2f}" for k, v in diag.timings.items()), ""]
     return "\n".join(L)
 
 

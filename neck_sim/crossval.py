@@ -59,13 +59,16 @@ class CrossvalReport(NamedTuple):
     alpha_range: float   # rad
     seed: int
     rows: list
+    n_cables: int = 0
+    routing: str = ""    # Routing.describe() of the model's routing
 
     @property
     def ok(self) -> bool:
         return all(r.ok for r in self.rows)
 
     def to_dict(self) -> dict:
-        return {"n_joints": self.n_joints, "samples": self.samples, "alpha_range_deg": math.degrees(self.alpha_range),
+        return {"n_joints": self.n_joints, "n_cables": self.n_cables, "routing": self.routing.splitlines(),
+                "samples": self.samples, "alpha_range_deg": math.degrees(self.alpha_range),
                 "seed": self.seed, "ok": self.ok, "rows": [r._asdict() for r in self.rows]}
 
 
@@ -77,11 +80,11 @@ def _dense_ten_J(model, data, rows) -> np.ndarray:
     return out
 
 
-def _velocity_map(model, data, ix, helper_tendons) -> np.ndarray:
+def _velocity_map(model, data, ix) -> np.ndarray:
     """J = dq/dalpha (nv, N) from MuJoCo's constraint Jacobians at the current pose."""
     import mujoco
 
-    n = ix.n_joints
+    n, m = ix.n_joints, ix.n_cables
     nv = model.nv
     rows = []
     jp1, jp2 = np.zeros((3, nv)), np.zeros((3, nv))
@@ -89,15 +92,15 @@ def _velocity_map(model, data, ix, helper_tendons) -> np.ndarray:
         mujoco.mj_jacSite(model, data, jp1, None, int(s1))
         mujoco.mj_jacSite(model, data, jp2, None, int(s2))
         rows.append(jp1 - jp2)                       # velocity of the gap: must vanish
-    rows.append(_dense_ten_J(model, data, helper_tendons))
+    rows.append(_dense_ten_J(model, data, ix.helper_tendon))
     sel = np.zeros((n, nv))
     sel[np.arange(n), ix.dof_A] = 1.0
     sel[np.arange(n), ix.dof_D] = 1.0
-    held = np.zeros((n + 1, nv))
-    held[np.arange(n + 1), ix.dof_motor] = 1.0
+    held = np.zeros((m, nv))
+    held[np.arange(m), ix.dof_motor] = 1.0
     A = np.vstack(rows + [sel, held])
     rhs = np.zeros((A.shape[0], n))
-    rhs[A.shape[0] - (2 * n + 1): A.shape[0] - (n + 1)] = np.eye(n)
+    rhs[A.shape[0] - (n + m): A.shape[0] - m] = np.eye(n)
     J, *_ = np.linalg.lstsq(A, rhs, rcond=None)
     return J
 
@@ -120,14 +123,14 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
     ap = params if analytic_params is None else analytic_params
     if ap.n_joints != n:
         raise ValueError(f"analytic_params: {ap.n_joints} joints, the model has {n}")
+    if ap.n_cables != params.n_cables:
+        raise ValueError(f"analytic_params: {ap.n_cables} cables, the model has {params.n_cables}")
     model, _ = build_model(params)
     ix = model_index(model)
     # Bar bodies only: helpers and motors get no mass; the helpers keep their small rotary
     # inertia (a zero one would make M_q singular) and its exact share is removed below.
     model.body_mass[ix.other_bodies] = 0.0
-    helper_bodies = ix.other_bodies[: n - 1]
-    helper_tendons = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"j{i}_helper_lock")
-                      for i in range(1, n)]
+    helper_bodies = ix.other_bodies[: len(ix.helper_joint)]
     data = mujoco.MjData(model)
 
     def place(alpha):
@@ -164,12 +167,12 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
         record("lengths", data.ten_length[ix.cable_tendon] - l0, cable_lengths(alpha, ap))
         gaps = data.site_xpos[ix.loop_sites[:, 0]] - data.site_xpos[ix.loop_sites[:, 1]]
         record("loop gap", np.linalg.norm(gaps, axis=1), np.zeros(n))
-        J = _velocity_map(model, data, ix, helper_tendons)
+        J = _velocity_map(model, data, ix)
         closed = np.zeros_like(J)
         closed[ix.dof_A, np.arange(n)] = pq.dq_A
         closed[ix.dof_B, np.arange(n)] = pq.dq_B
         closed[ix.dof_D, np.arange(n)] = pq.dq_D
-        closed[ix.dof_helper, np.arange(n - 1)] = pq.dq_helper
+        closed[ix.dof_helper, ix.helper_joint] = pq.dq_helper
         record("dq/dalpha", J, closed)
         tenJ = _dense_ten_J(model, data, ix.cable_tendon)
         record("Z", -(tenJ @ J).T, transmission_matrix(alpha, ap))
@@ -186,14 +189,17 @@ def crossval(params: NeckParams, samples: int = 200, seed: int = 0, alpha_range:
         ab, rel = errs[q]
         val = ab if kind == "abs" else rel
         rows.append(Row(q, ab, rel, kind, thr, bool(val <= thr)))
-    return CrossvalReport(n, int(samples), float(alpha_range), int(seed), rows)
+    return CrossvalReport(n, int(samples), float(alpha_range), int(seed), rows, params.n_cables,
+                          params.routing.describe())
 
 
 def format_table(report: CrossvalReport) -> str:
     """The report as a fixed-width table (one line per quantity)."""
-    head = (f"cross-validation MuJoCo vs analytic: N = {report.n_joints}, {report.samples} random poses in "
-            f"[-{math.degrees(report.alpha_range):g}, {math.degrees(report.alpha_range):g}] deg^N, seed {report.seed}")
-    lines = [head, f"{'quantity':<10} {'max abs':>11} {'max rel':>11}  {'threshold':<14} result"]
+    head = (f"cross-validation MuJoCo vs analytic: N = {report.n_joints}, m = {report.n_cables} cables, "
+            f"{report.samples} random poses in [-{math.degrees(report.alpha_range):g}, "
+            f"{math.degrees(report.alpha_range):g}] deg^N, seed {report.seed}")
+    lines = [head] + [f"  {line}" for line in report.routing.splitlines()]
+    lines.append(f"{'quantity':<10} {'max abs':>11} {'max rel':>11}  {'threshold':<14} result")
     for r in report.rows:
         rel = "-" if r.quantity in ("lengths", "loop gap") else f"{r.max_rel:.3e}"
         lines.append(f"{r.quantity:<10} {r.max_abs:>11.3e} {rel:>11}  {r.kind + ' ' + format(r.threshold, '.0e'):<14} "
@@ -240,7 +246,10 @@ class DynamicsReport(NamedTuple):
 def _default_case(params: NeckParams):
     n = params.n_joints
     a0 = np.radians([DYNAMICS_ALPHA0_DEG[i % 3] for i in range(n)])
-    f = np.array([DYNAMICS_FORCES[min(j, 2)] for j in range(n)] + [DYNAMICS_FORCES[3]])
+    # the k-th right cable takes DYNAMICS_FORCES[k] (the third beyond), left cables the fourth
+    sides = params.routing.sides
+    right = np.cumsum([s == "right" for s in sides]) - 1
+    f = np.array([DYNAMICS_FORCES[min(k, 2)] if s == "right" else DYNAMICS_FORCES[3] for s, k in zip(sides, right)])
     return a0, f
 
 

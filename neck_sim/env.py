@@ -4,7 +4,7 @@
     env = neck_env.load(n_joints=3, seed=0)                 # random cycloidal targets
     ts = env.reset()
     while not ts.last():
-        ts = env.step(my_policy(ts.observation))            # N+1 cable forces in [0, f_max] N
+        ts = env.step(my_policy(ts.observation))            # m cable forces (N+1 for the paper) in [0, f_max] N
 
 The environment is a :class:`dm_control.rl.control.Environment` whose physics,
 :class:`NeckPhysics`, is a :class:`dm_control.mujoco.Physics` *wrapping* a
@@ -12,12 +12,12 @@ The environment is a :class:`dm_control.rl.control.Environment` whose physics,
 callbacks (eq 54 cable tensions, eq 37 motor friction, the hidden effects) act, and one
 environment step is one :meth:`Plant.step` -- one control period, 1/``control.rate_hz`` (500 Hz).
 
-Actions: the N+1 commanded cable forces f (N), ``BoundedArray`` [0, ``actuation.f_max``].
+Actions: the m commanded cable forces (m = params.n_cables, N+1 for the paper) f (N), ``BoundedArray`` [0, ``actuation.f_max``].
 
 Observations (what the prototype measures; all float64):
 
-* ``encoder_angles`` (N+1,) rad: motor angles theta, quantised to the encoder resolution;
-* ``encoder_speeds`` (N+1,) rad/s: their backward difference over one control period (zero at
+* ``encoder_angles`` (m,) rad: motor angles theta, quantised to the encoder resolution;
+* ``encoder_speeds`` (m,) rad/s: their backward difference over one control period (zero at
   the first step), as the prototype's controller gets them;
 * ``camera_angles`` (N,) rad: the last camera frame (30 Hz, 1 deg noise), held between frames;
   before the first frame, the known start pose;
@@ -26,7 +26,7 @@ Observations (what the prototype measures; all float64):
   derivatives (rad, rad/s, rad/s^2) at the current time.
 
 With ``observe_truth=True`` the observation also holds the simulation truth ``true_alpha``,
-``true_alpha_dot`` (N,), ``true_tension``, ``true_elongation`` (N+1,) -- for debugging; it is
+``true_alpha_dot`` (N,), ``true_tension``, ``true_elongation`` (m,) -- for debugging; it is
 always available as ``env.physics.truth()`` (a :class:`neck_sim.plant.Truth`).
 
 Reward: mean over joints of ``dm_control.utils.rewards.tolerance(|alpha_i - alpha_d,i|,
@@ -91,7 +91,7 @@ class NeckPhysics(dm_mujoco.Physics):
     def from_plant(cls, plant: Plant) -> "NeckPhysics":
         phys = cls.__new__(cls)
         phys._plant = plant
-        phys._forces = np.zeros(plant.n_joints + 1)
+        phys._forces = np.zeros(plant.params.n_cables)
         phys._last_frame = None
         dm_mujoco.Physics.__init__(phys, wrapper.MjData(plant.data))
         return phys
@@ -120,7 +120,7 @@ class NeckPhysics(dm_mujoco.Physics):
         if keyframe_id is not None:
             raise ValueError("keyframe_id: the neck model has no keyframes; pass alpha0")
         self._plant.reset(alpha0)
-        self._forces = np.zeros(self._plant.n_joints + 1)
+        self._forces = np.zeros(self._plant.params.n_cables)
         self._last_frame = None
 
     def after_reset(self) -> None:
@@ -183,8 +183,8 @@ class TrackingTask(base.Task):
         self._episode = -1
         self._rate = params.control.rate_hz
         self.trajectory: Trajectory | Any = self._fixed
-        self._prev_theta = np.zeros(n + 1)
-        self._speed = np.zeros(n + 1)
+        self._prev_theta = np.zeros(params.n_cables)
+        self._speed = np.zeros(params.n_cables)
         self._camera = np.zeros(n)
         self._camera_new = 0.0
         self._ref = (np.zeros(n),) * 3
@@ -201,7 +201,7 @@ class TrackingTask(base.Task):
         plant.seed = int(self.random.randint(2 ** 31 - 1))
         physics.reset(alpha0=start)
         self._prev_theta = plant.encoders()
-        self._speed = np.zeros(n + 1)
+        self._speed = np.zeros(self.params.n_cables)
         self._camera = start.copy()
         self._camera_new = 0.0
         self._ref = self._reference(physics.time())
@@ -234,7 +234,7 @@ class TrackingTask(base.Task):
 
     # -- specs
     def action_spec(self, physics: NeckPhysics) -> specs.BoundedArray:
-        n1 = self._n + 1
+        n1 = self.params.n_cables
         return specs.BoundedArray((n1,), np.float64, np.zeros(n1), np.full(n1, self.params.actuation.f_max),
                                   name="cable_forces")
 
@@ -243,7 +243,7 @@ class TrackingTask(base.Task):
                                        for name, shape in self._shapes())
 
     def _shapes(self):
-        n, n1 = self._n, self._n + 1
+        n, n1 = self._n, self.params.n_cables
         out = [("encoder_angles", (n1,)), ("encoder_speeds", (n1,)), ("camera_angles", (n,)), ("camera_new", (1,)),
                ("reference", (n,)), ("reference_velocity", (n,)), ("reference_acceleration", (n,))]
         if self._observe_truth:

@@ -49,10 +49,11 @@ import numpy as np
 
 from neck_sim.analytic.geometry import _joint_local, check_alpha, forward_kinematics
 from neck_sim.atomic import atomic_write_bytes
-from neck_sim.params import NeckParams
+from neck_sim.params import (SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_SIDE, SEG_RIGHT_STRUT,
+                             NeckParams)
 
 __all__ = ["DEFAULT_TIMESTEP", "Layout", "build_xml", "build_model", "write_xml", "ModelIndex",
-           "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path"]
+           "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path", "helper_joints"]
 
 DEFAULT_TIMESTEP = 5e-4
 """Physics timestep (s): the largest that keeps the issue-3 dynamics check true (see plant)."""
@@ -72,9 +73,9 @@ class Layout(NamedTuple):
 
     corners: np.ndarray       # (N, 4, 2) A, B, C, D of every joint
     mid_top: np.ndarray       # (N, 2) middle of C_i D_i (origin of the top-bar body)
-    row_z: np.ndarray         # (N+1,) z of each cable row
-    motor_site: np.ndarray    # (N+1, 2) first site of each cable (on the motor body)
-    motor_axis: np.ndarray    # (N+1, 2) slide axis: the direction that winds the cable up
+    row_z: np.ndarray         # (m,) z of each cable row
+    motor_site: np.ndarray    # (m, 2) first site of each cable (on the motor body)
+    motor_axis: np.ndarray    # (m, 2) slide axis: the direction that winds the cable up
 
 
 def _layout(params: NeckParams) -> Layout:
@@ -83,15 +84,36 @@ def _layout(params: NeckParams) -> Layout:
     kin = forward_kinematics(np.zeros(n), params)
     corners = kin.corners
     mid_top = 0.5 * (corners[:, 2] + corners[:, 3])
-    row_z = np.array([_ROW_PITCH * (j + 1) for j in range(n)] + [-_ROW_PITCH])
+    cables = params.routing.cables
+    row_z = np.array([_ROW_PITCH * c.row for c in cables])
     A1, B1 = corners[0, 0], corners[0, 1]
-    # Right cables arrive under the base bar travelling +x and wrap B_1 counter-clockwise; the
-    # left cable arrives travelling -x and wraps A_1 clockwise: both lines are y = -r.
+    # Right cables arrive under the base bar travelling +x and wrap B_1 counter-clockwise; left
+    # cables arrive travelling -x and wrap A_1 clockwise: both lines are y = -r.
     right = np.array([B1[0] - _MOTOR_DISTANCE, -g.r])
     left = np.array([A1[0] + _MOTOR_DISTANCE, -g.r])
-    motor_site = np.array([right] * n + [left])
-    motor_axis = np.array([[-1.0, 0.0]] * n + [[1.0, 0.0]])
+    motor_site = np.array([left if c.side == "left" else right for c in cables])
+    motor_axis = np.array([[1.0, 0.0] if c.side == "left" else [-1.0, 0.0] for c in cables])
     return Layout(corners, mid_top, row_z, motor_site, motor_axis)
+
+
+def helper_joints(params: NeckParams) -> list[tuple[int, str]]:
+    """(joint i, side) of every helper body, by joint then left before right.
+
+    A side-routed cable runs on the external tangent of a side, where no bar lies: a light helper
+    body hinged at A_i (left, ``j{i}_helper``) or B_i (right, ``j{i}_helper_right``), held at
+    alpha_i / 2 by a fixed-tendon equality, carries a site on that tangent.
+    """
+    kinds = params.routing.segment_cases(params.n_joints)
+    out = []
+    for i in range(params.n_joints):
+        for side, kind in (("left", SEG_LEFT_SIDE), ("right", SEG_RIGHT_SIDE)):
+            if np.any(kinds[:, i] == kind):
+                out.append((i + 1, side))
+    return out
+
+
+def _helper_name(i: int, side: str) -> str:
+    return f"j{i}_helper" if side == "left" else f"j{i}_helper_right"
 
 
 # --------------------------------------------------------------------------------------------
@@ -117,37 +139,58 @@ def _base_body(i: int) -> str:
 
 
 def _cable_paths(params: NeckParams, lay: Layout) -> list[list]:
-    """Path items of each cable (index 0..N), alternating sites and wraps, sites at both ends."""
-    n = params.n_joints
+    """Path items of each cable (index 0..m-1), alternating sites and wraps, sites at both ends.
+
+    Per joint i (corners A, B, C, D): case (d) crosses through the midpoints of the diagonal B->C
+    and of the top bar, wrapping C_i clockwise and D_i = B_{i+1} counter-clockwise; its mirror
+    (d') crosses A->D and the top bar, wrapping D_i ccw and C_i = A_{i+1} cw; a side-routed pass
+    (c, c') touches a helper site on the external tangent, then turns once more round the top
+    pulley, split in two arcs by a site at 2.5 r towards the inside; an end (a, b) is a site at
+    C_i or D_i.
+    """
+    g = params.geometry
     c = lay.corners
+    r = g.r
+    rise = 0.5 * (g.L - g.b)
     paths = []
-    for j in range(1, n + 1):                      # right cables
+    for j, cable in enumerate(params.routing.cables, start=1):
         tag = f"c{j}"
+        left = cable.side == "left"
         items: list = [_Site(f"{tag}_motor", f"motor{j}", lay.motor_site[j - 1])]
-        for i in range(1, j):                      # case (d)
+        if left:
+            items.append(_Wrap(f"{tag}_pulley_A1", "world", c[0, 0], -1, f"{tag}_side_A1"))
+        else:
+            items.append(_Wrap(f"{tag}_pulley_B1", "world", c[0, 1], +1, f"{tag}_side_B1"))
+        for i, kind in enumerate(cable.kinds, start=1):
             A, B, C, D = c[i - 1]
-            items += [_Wrap(f"{tag}_pulley_B{i}", _base_body(i), B, +1, f"{tag}_side_B{i}"),
-                      _Site(f"{tag}_mid_bc{i}", f"j{i}_bc", 0.5 * (B + C)),
-                      _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}"),
-                      _Site(f"{tag}_mid_top{i}", f"j{i}_top", 0.5 * (C + D))]
-        A, B, C, D = c[j - 1]                      # case (b)
-        items += [_Wrap(f"{tag}_pulley_B{j}", _base_body(j), B, +1, f"{tag}_side_B{j}"),
-                  _Site(f"{tag}_end", f"j{j}_top", D)]
+            if i < len(c):
+                D = c[i, 1]                         # D_i as B_{i+1}, the base corner of the next joint
+            top = f"j{i}_top"
+            if kind == SEG_RIGHT_STRUT:
+                items += [_Site(f"{tag}_mid_bc{i}", f"j{i}_bc", 0.5 * (B + C)),
+                          _Wrap(f"{tag}_pulley_C{i}", top, C, -1, f"{tag}_side_C{i}"),
+                          _Site(f"{tag}_mid_top{i}", top, 0.5 * (C + D)),
+                          _Wrap(f"{tag}_pulley_B{i + 1}", top, D, +1, f"{tag}_side_B{i + 1}")]
+            elif kind == SEG_LEFT_STRUT:
+                items += [_Site(f"{tag}_mid_ad{i}", f"j{i}_ad", 0.5 * (A + D)),
+                          _Wrap(f"{tag}_pulley_D{i}", top, D, +1, f"{tag}_side_D{i}"),
+                          _Site(f"{tag}_mid_top{i}", top, 0.5 * (C + D)),
+                          _Wrap(f"{tag}_pulley_C{i}", top, C, -1, f"{tag}_side_C{i}")]
+            elif kind == SEG_LEFT_SIDE:
+                pul, side = f"{tag}_pulley_C{i}", f"{tag}_side_C{i}"
+                items += [_Site(f"{tag}_helper{i}", _helper_name(i, "left"), A + np.array([-r, rise])),
+                          _Wrap(pul, top, C, -1, side + "a"),
+                          _Site(f"{tag}_turn{i}", top, C + np.array([_TURN_RADIUS * r, 0.0])),
+                          _Wrap(pul, top, C, -1, side + "b")]
+            elif kind == SEG_RIGHT_SIDE:
+                pul, side = f"{tag}_pulley_B{i + 1}", f"{tag}_side_B{i + 1}"
+                items += [_Site(f"{tag}_helper_right{i}", _helper_name(i, "right"), B + np.array([r, rise])),
+                          _Wrap(pul, top, D, +1, side + "a"),
+                          _Site(f"{tag}_turn{i}", top, D - np.array([_TURN_RADIUS * r, 0.0])),
+                          _Wrap(pul, top, D, +1, side + "b")]
+            else:                                   # case (a): attached at C_i; (b): at D_i
+                items.append(_Site(f"{tag}_end", top, C if kind == SEG_LEFT_END else D))
         paths.append(items)
-    tag = f"c{n + 1}"                              # left cable
-    items = [_Site(f"{tag}_motor", f"motor{n + 1}", lay.motor_site[n]),
-             _Wrap(f"{tag}_pulley_A1", "world", c[0, 0], -1, f"{tag}_side_A1")]
-    r = params.geometry.r
-    for i in range(1, n):                          # case (c)
-        A, B, C, D = c[i - 1]
-        helper = A + np.array([-r, 0.5 * (params.geometry.L - params.geometry.b)])
-        turn = C + np.array([_TURN_RADIUS * r, 0.0])
-        items += [_Site(f"{tag}_helper{i}", f"j{i}_helper", helper),
-                  _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}a"),
-                  _Site(f"{tag}_turn{i}", f"j{i}_top", turn),
-                  _Wrap(f"{tag}_pulley_C{i}", f"j{i}_top", C, -1, f"{tag}_side_C{i}b")]
-    items.append(_Site(f"{tag}_end", f"j{n}_top", c[n - 1, 2]))   # case (a): attached at C_N
-    paths.append(items)
     return paths
 
 
@@ -212,6 +255,7 @@ def _world_transform(params: NeckParams, alpha: np.ndarray, lay: Layout):
         frames[f"j{i}_ad"] = (A_now, base_angle + ang_ad, A_st)
         frames[f"j{i}_bc"] = (B_now, base_angle + ang_bc, B_st)
         frames[f"j{i}_helper"] = (A_now, base_angle + alpha[i - 1] / 2, A_st)
+        frames[f"j{i}_helper_right"] = (B_now, base_angle + alpha[i - 1] / 2, B_st)
         frames[f"j{i}_top"] = (0.5 * (C_now + D_now), base_angle + alpha[i - 1], lay.mid_top[i - 1])
         base_angle += alpha[i - 1]
 
@@ -281,7 +325,8 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
         rest_lengths = data.ten_length[:params.n_cables].copy()
     rest_lengths = np.asarray(rest_lengths, dtype=float)
     g, act, inert = params.geometry, params.actuation, params.inertia
-    n = g.n_joints
+    n, m = g.n_joints, params.n_cables
+    helpers = helper_joints(params)
     lay = _layout(params)
     c = lay.corners
     paths = _cable_paths(params, lay)
@@ -350,14 +395,16 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
         ET.SubElement(bc, "site", name=f"j{i}_C_bc", pos=_vec(*local(f"j{i}_bc", C), 0.0))
         ET.SubElement(bodies[base], "site", name=f"j{i}_A_base", pos=_vec(*local(base, A), 0.0))
         ET.SubElement(bodies[base], "site", name=f"j{i}_B_base", pos=_vec(*local(base, B), 0.0))
-        if i < n:
-            helper = add_body(f"j{i}_helper", base, A)
-            ET.SubElement(helper, "joint", name=f"j{i}_helper")
-            ET.SubElement(helper, "inertial", pos="0 0 0", mass=_fmt(_HELPER_MASS),
-                          diaginertia=_vec(_HELPER_INERTIA, _HELPER_INERTIA, _HELPER_INERTIA))
+        for hi, side in helpers:
+            if hi == i:
+                name = _helper_name(i, side)
+                helper = add_body(name, base, A if side == "left" else B)
+                ET.SubElement(helper, "joint", name=name)
+                ET.SubElement(helper, "inertial", pos="0 0 0", mass=_fmt(_HELPER_MASS),
+                              diaginertia=_vec(_HELPER_INERTIA, _HELPER_INERTIA, _HELPER_INERTIA))
 
     fric = params.friction
-    for j in range(n + 1):
+    for j in range(m):
         name = f"motor{j + 1}"
         mb = add_body(name, "world", lay.motor_site[j])
         ax = lay.motor_axis[j]
@@ -393,8 +440,9 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
 
     tendon = ET.SubElement(root, "tendon")
     for j, path in enumerate(paths):
+        left = params.routing.cables[j].side == "left"
         sp = ET.SubElement(tendon, "spatial", name=f"c{j + 1}", width="0.0005",
-                           rgba=colours[min(j, 3) if j < n else 3] if n <= 3 else colours[j % len(colours)])
+                           rgba=(colours[3] if left else colours[j]) if m <= 4 else colours[j % len(colours)])
         for item in path:
             if isinstance(item, _Site):
                 ET.SubElement(sp, "site", site=item.name)
@@ -409,9 +457,10 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
                                rgba="0.5 0.8 0.5 1")
             ET.SubElement(sp, "site", site=s0)
             ET.SubElement(sp, "site", site=s1)
-    for i in range(1, n):
-        fx = ET.SubElement(tendon, "fixed", name=f"j{i}_helper_lock")
-        ET.SubElement(fx, "joint", joint=f"j{i}_helper", coef="1")
+    for i, side in helpers:
+        name = _helper_name(i, side)
+        fx = ET.SubElement(tendon, "fixed", name=f"{name}_lock")
+        ET.SubElement(fx, "joint", joint=name, coef="1")
         ET.SubElement(fx, "joint", joint=f"j{i}_A", coef="-0.5")
         ET.SubElement(fx, "joint", joint=f"j{i}_D", coef="-0.5")
 
@@ -425,20 +474,20 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
     for i in range(1, n + 1):
         ET.SubElement(eq, "connect", name=f"j{i}_loop", site1=f"j{i}_C_top", site2=f"j{i}_C_bc",
                       solref=solref, solimp=solimp)
-    for i in range(1, n):
-        ET.SubElement(eq, "tendon", name=f"j{i}_helper_eq", tendon1=f"j{i}_helper_lock",
-                      solref=solref, solimp=solimp)
+    for i, side in helpers:
+        name = _helper_name(i, side)
+        ET.SubElement(eq, "tendon", name=f"{name}_eq", tendon1=f"{name}_lock", solref=solref, solimp=solimp)
     if rigid_cables:
-        for j in range(n + 1):
+        for j in range(m):
             ET.SubElement(eq, "tendon", name=f"c{j + 1}_rigid", tendon1=f"c{j + 1}",
                           solref=solref, solimp=solimp)
 
     actuator = ET.SubElement(root, "actuator")
-    for j in range(n + 1):
+    for j in range(m):
         ET.SubElement(actuator, "general", name=f"drive{j + 1}", joint=f"motor{j + 1}", gaintype="fixed",
                       gainprm="1", biastype="affine", biasprm="0 0 0", ctrlrange=_vec(0.0, act.f_max))
     cab = params.cables
-    for j in range(n + 1):
+    for j in range(m):
         k, ca = (0.0, 0.0) if rigid_cables else (cab.k[j], cab.c_a[j])
         ET.SubElement(actuator, "general", name=f"tension{j + 1}", tendon=f"c{j + 1}", gaintype="fixed",
                       gainprm="0", biastype="affine", biasprm=_vec(k * rest_lengths[j], -k, -ca),
@@ -480,20 +529,26 @@ class ModelIndex(NamedTuple):
     qpos_A: np.ndarray        # (N,) qpos address of hinge j{i}_A
     qpos_B: np.ndarray
     qpos_D: np.ndarray
-    qpos_helper: np.ndarray   # (N-1,)
-    qpos_motor: np.ndarray    # (N+1,)
+    qpos_helper: np.ndarray   # (H,) helpers in the order of helper_joints (N-1 for the paper's routing)
+    qpos_motor: np.ndarray    # (m,)
     dof_A: np.ndarray
     dof_B: np.ndarray
     dof_D: np.ndarray
     dof_helper: np.ndarray
     dof_motor: np.ndarray
-    cable_tendon: np.ndarray  # (N+1,) tendon ids of c1..c{N+1}
-    drive_actuator: np.ndarray    # (N+1,)
-    tension_actuator: np.ndarray  # (N+1,)
+    cable_tendon: np.ndarray  # (m,) tendon ids of c1..c{m}
+    drive_actuator: np.ndarray    # (m,)
+    tension_actuator: np.ndarray  # (m,)
     loop_sites: np.ndarray    # (N, 2) site ids of j{i}_C_top, j{i}_C_bc
     bar_bodies: np.ndarray    # (3N,) body ids of the bars
-    other_bodies: np.ndarray  # helpers and motors
-    rigid_equality: np.ndarray    # (N+1,) equality ids of c{j}_rigid, or empty
+    other_bodies: np.ndarray  # helpers (first H) and motors
+    rigid_equality: np.ndarray    # (m,) equality ids of c{j}_rigid, or empty
+    helper_joint: np.ndarray  # (H,) 0-based X-joint of each helper
+    helper_tendon: np.ndarray     # (H,) tendon ids of the helpers' fixed-tendon locks
+
+    @property
+    def n_cables(self) -> int:
+        return len(self.cable_tendon)
 
 
 def model_index(model) -> ModelIndex:
@@ -516,26 +571,33 @@ def model_index(model) -> ModelIndex:
         n += 1
     if n == 0:
         raise ValueError("model: no joint named 'j1_A' (not a neck_sim model?)")
+    m = 0
+    while mujoco.mj_name2id(model, J, f"motor{m + 1}") >= 0:
+        m += 1
     jn = range(1, n + 1)
+    cn = range(1, m + 1)
+    helpers = [(i, side) for i in jn for side in ("left", "right")
+               if mujoco.mj_name2id(model, J, _helper_name(i, side)) >= 0]
+    hnames = [_helper_name(i, side) for i, side in helpers]
     jA, jB, jD = (ids(J, [f"j{i}_{h}" for i in jn]) for h in "ABD")
-    jH = ids(J, [f"j{i}_helper" for i in range(1, n)])
-    jM = ids(J, [f"motor{j}" for j in range(1, n + 2)])
+    jH = ids(J, hnames)
+    jM = ids(J, [f"motor{j}" for j in cn])
     q = model.jnt_qposadr
     v = model.jnt_dofadr
     B = mujoco.mjtObj.mjOBJ_BODY
+    T = mujoco.mjtObj.mjOBJ_TENDON
     bars = ids(B, [f"j{i}_{p}" for i in jn for p in ("ad", "bc", "top")])
-    others = np.concatenate([ids(B, [f"j{i}_helper" for i in range(1, n)]),
-                             ids(B, [f"motor{j}" for j in range(1, n + 2)])])
-    rigid = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"c{j}_rigid")
-                      for j in range(1, n + 2)], dtype=int)
+    others = np.concatenate([ids(B, hnames), ids(B, [f"motor{j}" for j in cn])])
+    rigid = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"c{j}_rigid") for j in cn], dtype=int)
     rigid = rigid if np.all(rigid >= 0) else np.zeros(0, dtype=int)
     S = mujoco.mjtObj.mjOBJ_SITE
     loops = np.stack([ids(S, [f"j{i}_C_top" for i in jn]), ids(S, [f"j{i}_C_bc" for i in jn])], axis=1)
     return ModelIndex(n, q[jA], q[jB], q[jD], q[jH], q[jM], v[jA], v[jB], v[jD], v[jH], v[jM],
-                      ids(mujoco.mjtObj.mjOBJ_TENDON, [f"c{j}" for j in range(1, n + 2)]),
-                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"drive{j}" for j in range(1, n + 2)]),
-                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"tension{j}" for j in range(1, n + 2)]),
-                      loops, bars, others, rigid)
+                      ids(T, [f"c{j}" for j in cn]),
+                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"drive{j}" for j in cn]),
+                      ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"tension{j}" for j in cn]),
+                      loops, bars, others, rigid, np.array([i - 1 for i, _ in helpers], dtype=int),
+                      ids(T, [f"{h}_lock" for h in hnames]))
 
 
 class PoseQpos(NamedTuple):
@@ -555,7 +617,7 @@ def pose_qpos(alpha, params: NeckParams) -> PoseQpos:
     """Hinge angles (relative to the straight pose) that put the bars on the closed-form pose.
 
     q_A = angle(D - A) - its straight value, q_B = psi - psi(0), q_D = alpha - q_A, helpers
-    alpha/2; shapes (..., N) (helpers (..., N-1)).  The derivatives are those of the closed form
+    alpha/2; shapes (..., N) (helpers (..., H), in the order of :func:`helper_joints`).  The derivatives are those of the closed form
     (eqs 1, 2, 7 differentiated), i.e. the analytic model's own kinematics.
     """
     g = params.geometry
@@ -576,8 +638,8 @@ def pose_qpos(alpha, params: NeckParams) -> PoseQpos:
     q_B = ang(jl.C - B) - ang(j0.C - B)
     dq_A = cross(jl.D - A, jl.dD) / g.L ** 2
     dq_B = cross(jl.C - B, jl.dC) / g.L ** 2
-    return PoseQpos(q_A, q_B, a - q_A, a[..., : n - 1] / 2, dq_A, dq_B, 1.0 - dq_A,
-                    np.full(a[..., : n - 1].shape, 0.5))
+    at = np.array([i - 1 for i, _ in helper_joints(params)], dtype=int)
+    return PoseQpos(q_A, q_B, a - q_A, a[..., at] / 2, dq_A, dq_B, 1.0 - dq_A, np.full(a[..., at].shape, 0.5))
 
 
 if __name__ == "__main__":      # regenerate the committed file: python -m neck_sim.mjcf

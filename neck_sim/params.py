@@ -1,10 +1,11 @@
 """Every physical constant of the neck, with its unit and its source, in one place.
 
 Parameters are frozen dataclasses grouped by concept (geometry, actuation, springs, inertia,
-friction, cables, control, sensors) under one :class:`NeckParams`.  Per-joint arrays have length
-N (``n_joints``) and per-cable arrays length N + 1 (cables c1..cN pull on the right, the last one
-is the long left cable).  Arrays are stored as tuples of floats so that parameter sets are
-immutable and hashable; use ``np.asarray`` to compute with them.
+friction, cables, control, sensors, routing) under one :class:`NeckParams`.  Per-joint arrays have
+length N (``n_joints``) and per-cable arrays length m (``n_cables``), in the order of
+``routing.cables``; the default routing is the paper's (m = N + 1: cables c1..cN pull on the right,
+the last one is the long left cable).  Arrays are stored as tuples of floats so that parameter sets
+are immutable and hashable; use ``np.asarray`` to compute with them.
 
 Each field carries ``metadata={"unit": ..., "source": ...}``; :func:`describe` prints them.
 
@@ -29,13 +30,19 @@ from neck_sim.atomic import atomic_write_bytes
 
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
-    "NeckParams", "ParameterError", "default_params", "describe", "load", "save",
-    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing",
+    "NeckParams", "ParameterError", "MAX_CABLES", "default_params", "describe", "load", "save",
+    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing", "neck10x4_routing",
+    "mirrored_paper_routing", "EXAMPLES", "example_params",
 ]
 
 
 class ParameterError(ValueError):
     """An invalid parameter value; the message names the offending field."""
+
+
+MAX_CABLES = 32
+"""Most joints and most cables a neck may have: the arrays of the plant's compiled callback
+(``NECK_MAXC`` in ``neck_sim/native/plant_callback.c``; a test holds the two equal)."""
 
 
 def _f(default, unit: str, source: str, **kw):
@@ -59,9 +66,29 @@ def _per_cable(sides: tuple[str, ...], right: tuple[float, ...], left: float) ->
     return tuple(out)
 
 
+def _check_number(obj, name: str) -> float:
+    """The field as a float, or ParameterError when it is not a number (a string, a bool, a list)."""
+    v = getattr(obj, name)
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be a number, got {v!r} "
+                             f"({type(v).__name__})")
+    object.__setattr__(obj, name, float(v))
+    return float(v)
+
+
+def _check_integer(obj, name: str, minimum: int, maximum: int | None = None) -> None:
+    v = getattr(obj, name)
+    ok = (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+          and math.isfinite(v) and int(v) == v and v >= minimum and (maximum is None or v <= maximum))
+    if not ok:
+        limit = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
+        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be an integer {limit}, got {v!r}")
+    object.__setattr__(obj, name, int(v))
+
+
 def _check_positive(obj, *names: str, strict: bool = True) -> None:
     for name in names:
-        v = getattr(obj, name)
+        v = _check_number(obj, name)
         bad = (not math.isfinite(v)) or (v <= 0 if strict else v < 0)
         if bad:
             kind = "positive" if strict else "non-negative"
@@ -101,9 +128,7 @@ class Geometry:
                           "assumption: joint range |alpha| < pi/2, the range of the paper's §5.6 study")
 
     def __post_init__(self):
-        if isinstance(self.n_joints, bool) or int(self.n_joints) != self.n_joints or self.n_joints < 1:
-            raise ParameterError(f"geometry.n_joints: must be an integer >= 1, got {self.n_joints!r}")
-        object.__setattr__(self, "n_joints", int(self.n_joints))
+        _check_integer(self, "n_joints", 1, MAX_CABLES)
         _check_positive(self, "b", "L", "alpha_max")
         _check_positive(self, "r", strict=False)
         if self.L <= self.b:
@@ -129,8 +154,9 @@ class Actuation:
     def __post_init__(self):
         _check_positive(self, "r_d", "R", "I_a", "f_max")
         _check_positive(self, "f_min", "t_min", strict=False)
-        if self.f_min > self.f_max:
-            raise ParameterError(f"actuation.f_min: {self.f_min} N exceeds f_max = {self.f_max} N")
+        for name in ("f_min", "t_min"):
+            if getattr(self, name) > self.f_max:
+                raise ParameterError(f"actuation.{name}: {getattr(self, name)} N exceeds f_max = {self.f_max} N")
 
     @property
     def reflected_inertia(self) -> float:
@@ -164,7 +190,9 @@ class Inertia:
     payload_mass: float = _f(0.0, "kg", "effect `payload`: point mass at the head's bar centre; nominal 0")
 
     def __post_init__(self):
-        _check_positive(self, "bar_mass", "diagonal_mass", "gravity", "payload_mass", strict=False)
+        # Moving bars need mass: a massless body has no inertia for MuJoCo (nor for M of eq 24).
+        _check_positive(self, "bar_mass", "diagonal_mass")
+        _check_positive(self, "gravity", "payload_mass", strict=False)
 
 
 @dataclass(frozen=True)
@@ -202,11 +230,9 @@ class Cables:
         _check_array(self, "lam", None, non_negative=True)
         _check_array(self, "c_a", None, non_negative=True)
         if self.k_linear is not None:
-            _check_array(self, "k_linear", len(self.k), positive=True)
+            _check_array(self, "k_linear", None, positive=True)
         _check_positive(self, "t_cap")
-        if not (len(self.k) == len(self.lam) == len(self.c_a)):
-            raise ParameterError(
-                f"cables: k, lam, c_a must have one value per cable, got {len(self.k)}, {len(self.lam)}, {len(self.c_a)}")
+        # Lengths are checked against n_joints by NeckParams, which names the array that is wrong.
 
 
 @dataclass(frozen=True)
@@ -237,10 +263,7 @@ class Sensors:
     camera_noise: float = _f(math.radians(1.0), "rad", "paper §4.2: image-processing precision about 1 deg")
 
     def __post_init__(self):
-        if int(self.encoder_counts_per_turn) != self.encoder_counts_per_turn or self.encoder_counts_per_turn < 1:
-            raise ParameterError(
-                f"sensors.encoder_counts_per_turn: must be a positive integer, got {self.encoder_counts_per_turn!r}")
-        object.__setattr__(self, "encoder_counts_per_turn", int(self.encoder_counts_per_turn))
+        _check_integer(self, "encoder_counts_per_turn", 1)
         _check_positive(self, "camera_rate_hz")
         _check_positive(self, "camera_noise", strict=False)
 
@@ -485,6 +508,59 @@ def paper_routing(n_joints: int = 3) -> Routing:
     return Routing(tuple(right + [CableRoute("left", ("side",) * (n_joints - 1), n_joints)]))
 
 
+
+def _route(side: str, strut: int, side_routed: int) -> CableRoute:
+    """A cable strut-routed on the first ``strut`` joints, side-routed on the next
+    ``side_routed`` and attached at the joint after them."""
+    return CableRoute(side, ("strut",) * strut + ("side",) * side_routed, strut + side_routed + 1)
+
+
+def neck10x4_routing() -> Routing:
+    """Ten X-joints, four cables: two antagonistic pairs, like a bird neck's lower and upper
+    muscle groups (README "Designing a neck").
+
+    c1 (right) and c2 (left) run up their sides over joints 1-4 and are attached at joint 5:
+    they bend the lower neck.  c3 (right) and c4 (left) cross joints 1-5 strut-routed (along the
+    diagonals, where their moment arm is small: |Z| <= 1.3 mm against about 25 mm on a side),
+    then run up their sides over joints 6-9 and are attached at the head (joint 10): they bend
+    the upper neck.  Same-side pulls make C curves, crossed pulls S curves.
+    """
+    return Routing((_route("right", 0, 4), _route("left", 0, 4), _route("right", 5, 4), _route("left", 5, 4)))
+
+
+def mirrored_paper_routing(n_joints: int = 3) -> Routing:
+    """The paper's routing mirrored: N left cables (cable j strut-routed along the diagonals A->D
+    below joint j, attached at C_j) and one long right cable side-routed to D_N."""
+    left = [CableRoute("left", ("strut",) * j, j + 1) for j in range(n_joints)]
+    return Routing(tuple(left + [CableRoute("right", ("side",) * (n_joints - 1), n_joints)]))
+
+
+def mixed4_routing() -> Routing:
+    """Four joints, four cables using every segment kind (a test case, not a design): a left cable
+    alternating strut and side, a right cable alternating side and strut, a short right cable
+    and a left cable attached at joint 1."""
+    return Routing((CableRoute("left", ("strut", "side", "strut"), 4),
+                    CableRoute("right", ("side", "strut", "side"), 4),
+                    CableRoute("right", ("side",), 2), CableRoute("left", (), 1)))
+
+
+EXAMPLES = {
+    "paper": (3, lambda: paper_routing(3), "the paper's prototype: 3 X-joints, 3 right cables + 1 long left cable"),
+    "neck10x4": (10, neck10x4_routing, "10 X-joints, 4 cables: lower and upper antagonistic pairs"),
+    "mirrored3": (3, lambda: mirrored_paper_routing(3),
+                  "the paper's neck with its routing mirrored (3 left cables + 1 long right cable)"),
+    "mixed4": (4, mixed4_routing, "4 X-joints, 4 cables using every segment kind (a test case)"),
+}
+"""Example necks: name -> (n_joints, routing factory, description)."""
+
+
+def example_params(name: str) -> "NeckParams":
+    """Default parameters of an example neck (:data:`EXAMPLES`)."""
+    if name not in EXAMPLES:
+        raise ParameterError(f"example {name!r}: unknown (known: {', '.join(EXAMPLES)})")
+    n, routing, _ = EXAMPLES[name]
+    return default_params(n, routing())
+
 _GROUPS = {"geometry": Geometry, "actuation": Actuation, "springs": Springs, "inertia": Inertia,
            "friction": Friction, "cables": Cables, "control": Control, "sensors": Sensors,
            "routing": Routing}
@@ -512,13 +588,17 @@ class NeckParams:
             raise ParameterError(f"routing: expected a Routing, got {type(self.routing).__name__}")
         self.routing.check_joints(n)
         m = self.routing.n_cables
+        if m > MAX_CABLES:
+            raise ParameterError(f"routing: {m} cables (n_joints = {n}), at most {MAX_CABLES} are supported "
+                                 f"(so at most {MAX_CABLES - 1} joints with the paper's routing)")
         checks = [("springs.stiffness", self.springs.stiffness, n, f"joint, n_joints = {n}"),
                   ("friction.f_s", self.friction.f_s, m, f"cable, {m} in routing.cables"),
                   ("cables.k", self.cables.k, m, f"cable, {m} in routing.cables"),
                   ("cables.lam", self.cables.lam, m, f"cable, {m} in routing.cables"),
-                  ("cables.c_a", self.cables.c_a, m, f"cable, {m} in routing.cables")]
+                  ("cables.c_a", self.cables.c_a, m, f"cable, {m} in routing.cables"),
+                  ("cables.k_linear", self.cables.k_linear, m, f"cable, {m} in routing.cables")]
         for name, vals, want, per in checks:
-            if len(vals) != want:
+            if vals is not None and len(vals) != want:
                 raise ParameterError(f"{name}: expected {want} values (one per {per}), got {len(vals)}")
         g, l0 = self.geometry, self.springs.rest_length
         if l0 >= g.L + g.b:
@@ -662,6 +742,9 @@ def load(path: str | os.PathLike) -> NeckParams:
             raise ParameterError(f"{path}: parameter files end in .json or .toml")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"{path}: malformed parameter file ({exc})") from None
+    if not data:
+        raise ParameterError(f"{path}: the parameter file is empty (it would silently mean the defaults; "
+                             "write `neck-sim params -o FILE` to start from them, or leave --params out)")
     return from_dict(data)
 
 

@@ -45,6 +45,7 @@ import math
 import os
 import warnings
 import weakref
+from collections.abc import Mapping, Set as AbstractSet
 from typing import NamedTuple
 
 import mujoco
@@ -61,11 +62,12 @@ from neck_sim.params import NeckParams, default_params
 __all__ = ["Plant", "Truth", "PlantDivergedError", "set_backend", "get_backend", "native_available",
            "NativeBuildError", "MAX_CABLES"]
 
+
 class Truth(NamedTuple):
     """What only a simulation knows, at the current instant (SI units).
 
-    alpha, alpha_dot (N,); theta, theta_dot (N+1,) motor-shaft angles (rad, rad/s); tension
-    (N+1,) N; elongation (N+1,) m (x_c, positive = stretched); loop_gap: largest distance (m)
+    alpha, alpha_dot (N,); theta, theta_dot (m,) motor-shaft angles (rad, rad/s); tension
+    (m,) N; elongation (m,) m (x_c, positive = stretched), m = ``params.n_cables``; loop_gap: largest distance (m)
     between the two sides of a loop-closure ``connect``.
     """
 
@@ -251,9 +253,10 @@ class Plant:
         self.effects = Effects() if effects is None else effects
         if not isinstance(self.effects, Effects):
             raise ValueError(f"effects: expected neck_sim.effects.Effects, got {type(self.effects).__name__}")
-        n = self.params.n_joints
-        if n + 1 > MAX_CABLES:
-            raise ValueError(f"params: at most {MAX_CABLES - 1} joints supported, got {n}")
+        n, m = self.params.n_joints, self.params.n_cables
+        if max(n, m) > MAX_CABLES:
+            raise ValueError(f"params: at most {MAX_CABLES} joints and {MAX_CABLES} cables supported, "
+                             f"got {n} and {m}")
         self.true_params = self.effects.true_params(self.params)
         self.seed = int(seed)
         self.rigid_cables = bool(rigid_cables)
@@ -267,8 +270,9 @@ class Plant:
         period = 1.0 / self.params.control.rate_hz
         nsub = int(round(period / dt)) if (math.isfinite(dt) and dt > 0) else 0
         if nsub < 1 or abs(nsub * dt - period) > 1e-9 * period:
-            raise ValueError(f"timestep: {timestep!r} s must divide the control period {period} s "
-                             f"(control.rate_hz = {self.params.control.rate_hz})")
+            raise ValueError(f"control.rate_hz = {self.params.control.rate_hz:g} Hz: its period {period:.6g} s is "
+                             f"not a whole number of physics steps of {dt:g} s (timestep"
+                             f"{' default' if timestep is None else ''}); choose a rate that divides {1 / dt:g} Hz")
         self.timestep = dt
         self.period = period
         self.substeps = nsub
@@ -288,22 +292,22 @@ class Plant:
         mujoco.mj_comPos(self.model, self.data)
         mujoco.mj_tendon(self.model, self.data)
         self._rest = self.data.ten_length[ix.cable_tendon].copy()
-        self._x_pre = self.effects.elongation_offset(n + 1)
+        self._x_pre = self.effects.elongation_offset(m)
         self._motor_effects = self.effects.motor_effects()
         self._c = self._make_struct(tp)
-        self._out_tension = np.ctypeslib.as_array(self._c.tension)[: n + 1]
-        self._out_elong = np.ctypeslib.as_array(self._c.elongation)[: n + 1]
-        self._out_theta = np.ctypeslib.as_array(self._c.theta)[: n + 1]
-        self._out_theta_dot = np.ctypeslib.as_array(self._c.theta_dot)[: n + 1]
+        self._out_tension = np.ctypeslib.as_array(self._c.tension)[:m]
+        self._out_elong = np.ctypeslib.as_array(self._c.elongation)[:m]
+        self._out_theta = np.ctypeslib.as_array(self._c.theta)[:m]
+        self._out_theta_dot = np.ctypeslib.as_array(self._c.theta_dot)[:m]
         self._out_alpha = np.ctypeslib.as_array(self._c.alpha)[:n]
         self._out_alpha_dot = np.ctypeslib.as_array(self._c.alpha_dot)[:n]
         self._delay = self.effects.command_delay()
         self._camera_delay = self.effects.camera_delay()      # a frame stamped t shows the neck at t - delay
-        self._n1 = n + 1
-        if not np.array_equal(ix.drive_actuator, np.arange(n + 1)):
-            raise RuntimeError("model: the drive actuators must be the first N+1 actuators")
+        self._n1 = m
+        if not np.array_equal(ix.drive_actuator, np.arange(m)):
+            raise RuntimeError("model: the drive actuators must be the first m actuators (one per cable)")
         self._fmax = act.f_max
-        python_only = [e.name for e in self._motor_effects if e.native_fields(n + 1) is None]
+        python_only = [e.name for e in self._motor_effects if e.native_fields(m) is None]
         if python_only and _DISPATCH.choose(backend) == "native":
             raise ValueError(f"effects {python_only}: no native kernel (native_fields) for the C callback; "
                              "use Plant(..., backend='python')")
@@ -316,7 +320,7 @@ class Plant:
         n1 = tp.n_cables
         ix = self._ix
         c = PlantStruct()
-        c.ncable, c.rigid, c.njoint = n1, int(self.rigid_cables), n1 - 1
+        c.ncable, c.rigid, c.njoint = n1, int(self.rigid_cables), tp.n_joints
         c.ratio, c.t_cap = self._ratio, tp.cables.t_cap
 
         def put(name, values):
@@ -433,7 +437,7 @@ class Plant:
         self._frame_index = 1                    # camera frame k is due at k / camera_rate_hz
         self._next_cam = self._camera_step(1)
         self._commands: dict[int, np.ndarray] = {}
-        self._rigid_tension = np.zeros(n + 1)
+        self._rigid_tension = np.zeros(self.params.n_cables)
         previous = _DISPATCH.enter()
         try:
             mujoco.mj_step1(m, d)
@@ -442,8 +446,10 @@ class Plant:
 
     def _check_forces(self, forces) -> list:
         """Commanded forces as a list of floats clipped to [0, f_max]; bad input raises ValueError."""
-        n1 = self.n_joints + 1
+        n1 = self._n1
         try:
+            if isinstance(forces, (Mapping, AbstractSet, str, bytes)):   # iterating would read keys, not forces
+                raise TypeError
             vals = [float(v) for v in forces]
         except (TypeError, ValueError):
             raise ValueError(f"forces: expected {n1} numbers (one per cable), got {np.shape(forces)} "
@@ -459,7 +465,7 @@ class Plant:
         return out
 
     def step(self, forces) -> None:
-        """Apply commanded cable forces (N+1,) N (clipped to [0, f_max]) for one control period."""
+        """Apply commanded cable forces (m,) N (clipped to [0, f_max]) for one control period."""
         f = self._check_forces(forces)
         previous = _DISPATCH.enter()
         try:
@@ -551,7 +557,7 @@ class Plant:
 
     def _constraint_tensions(self) -> np.ndarray:
         d, ix = self.data, self._ix
-        out = np.zeros(self.n_joints + 1)
+        out = np.zeros(self._n1)
         rows = np.nonzero(d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)[0]
         ids = d.efc_id[rows]
         for j, eq in enumerate(ix.rigid_equality):
@@ -561,7 +567,7 @@ class Plant:
         return out
 
     def encoders(self) -> np.ndarray:
-        """Motor angles theta (N+1,) rad, quantised to the encoder resolution (nearest count)."""
+        """Motor angles theta (m,) rad, quantised to the encoder resolution (nearest count)."""
         return np.rint(self._out_theta * self._inv_res) * self._res
 
     def camera_frame(self):

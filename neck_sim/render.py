@@ -124,7 +124,7 @@ def posed_data(alphas: Sequence, params: NeckParams | None = None):
     model = mujoco.MjModel.from_xml_string(_render_xml(plant.xml))
     if model.nq != plant.model.nq or model.nbody != plant.model.nbody:
         raise RuntimeError("render model: the visual additions changed the kinematic tree")
-    _restyle(model, params.n_joints)
+    _restyle(model, params)
     out = []
     for alpha in np.atleast_2d(np.asarray(alphas, dtype=float)):
         plant.reset(alpha)
@@ -135,13 +135,14 @@ def posed_data(alphas: Sequence, params: NeckParams | None = None):
     return model, out
 
 
-def _restyle(model, n: int) -> None:
+def _restyle(model, params: NeckParams) -> None:
     """Picture colours and widths (visual fields only)."""
     import mujoco
     T, G = mujoco.mjtObj.mjOBJ_TENDON, mujoco.mjtObj.mjOBJ_GEOM
-    for j in range(1, n + 2):
+    n = params.n_joints
+    for j, side in enumerate(params.routing.sides, start=1):
         t = mujoco.mj_name2id(model, T, f"c{j}")
-        rgb = _LEFT_CABLE if j == n + 1 else _RIGHT_CABLES[(j - 1) % len(_RIGHT_CABLES)]
+        rgb = _LEFT_CABLE if side == "left" else _RIGHT_CABLES[(j - 1) % len(_RIGHT_CABLES)]
         model.tendon_rgba[t] = (*rgb, 1.0)
         model.tendon_width[t] = _CABLE_WIDTH
     for i in range(1, n + 1):
@@ -278,11 +279,9 @@ def _fmt_pose(alpha: np.ndarray) -> str:
 
 def _legend(model, params: NeckParams) -> list[tuple[str, tuple]]:
     import mujoco
-    n = params.n_joints
     out = []
-    for j in range(1, n + 2):
+    for j, side in enumerate(params.routing.sides, start=1):
         t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"c{j}")
-        side = "left" if j == n + 1 else "right"
         out.append((f"cable {j} ({side})", tuple(model.tendon_rgba[t][:3])))
     t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, "j1_spring_left")
     out.append(("side springs", tuple(model.tendon_rgba[t][:3])))

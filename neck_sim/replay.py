@@ -20,7 +20,7 @@ import numpy as np
 
 from neck_sim.effects import Effects
 from neck_sim.logs import Log, LogWriter, read_log
-from neck_sim.params import NeckParams, from_dict, to_dict
+from neck_sim.params import NeckParams, ParameterError, from_dict, to_dict
 
 __all__ = ["plant_run_info", "plant_from_log", "replay", "ReplayResult"]
 
@@ -50,6 +50,9 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
             notes.append("run record has no plant_params: using the nominal constants of the neck record")
         else:
             params = from_dict(recorded)
+    if params.n_joints != log.params.n_joints:
+        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints but "
+                             f"the log {log.path} was recorded with N = {log.params.n_joints}")
     if changes:
         params = params.replace(**changes)
     if effects is None:

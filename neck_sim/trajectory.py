@@ -149,32 +149,40 @@ def _joint_profile(n: int, first_deg: float, last_deg: float) -> np.ndarray:
     return np.radians(np.linspace(first_deg, last_deg, n))
 
 
+def _check_amplitude(amplitude: float) -> float:
+    if not (np.isfinite(amplitude) and amplitude > 0):
+        raise ValueError(f"amplitude: must be a positive scale of the joint angles, got {amplitude}")
+    return float(amplitude)
+
+
 def control_test_trajectory(params: NeckParams, move_time: float = MOVE_TIME,
-                            hold_time: float = HOLD_TIME) -> Trajectory:
+                            hold_time: float = HOLD_TIME, amplitude: float = 1.0) -> Trajectory:
     """The control-test trajectory of §7: straight -> [50, 50, 50] deg -> straight ->
-    [-30, -40, -50] deg -> straight (for N joints: 50 deg each, then -30 .. -50 deg linearly).
+    [-30, -40, -50] deg -> straight (for N joints: 50 deg each, then -30 .. -50 deg linearly),
+    every angle times ``amplitude``.
 
     Defaults (2.5 s moves, 1 s holds, 15 s in all) are those of the design notes.
     """
     n = params.n_joints
     straight = np.zeros(n)
-    poses = [straight, np.full(n, np.radians(50.0)), straight, -_joint_profile(n, 30.0, 50.0), straight]
+    s = _check_amplitude(amplitude)
+    poses = [straight, np.full(n, s * np.radians(50.0)), straight, -s * _joint_profile(n, 30.0, 50.0), straight]
     traj = cycloidal_path(poses, move_time, hold_time, name="control-test")
     traj.check_workspace(params)
     return traj
 
 
 def identification_trajectory(params: NeckParams, move_time: float = MOVE_TIME,
-                              hold_time: float = HOLD_TIME) -> Trajectory:
+                              hold_time: float = HOLD_TIME, amplitude: float = 1.0) -> Trajectory:
     """The identification trajectory of §5.2.2: N + 1 sequences of six cycloidal motions.
 
     Each sequence goes straight -> a -> -a -> straight -> -a -> a -> straight.  Sequence 1 uses
     a = [40, 30, 20] deg (N joints: 40 .. 20 deg linearly); sequence j + 1 flips the sign of joint
     j's amplitude.  For N = 3 that is the paper's four sequences (24 motions, 84 s with the
-    defaults).
+    defaults).  Every angle is multiplied by ``amplitude``.
     """
     n = params.n_joints
-    base = _joint_profile(n, 40.0, 20.0)
+    base = _check_amplitude(amplitude) * _joint_profile(n, 40.0, 20.0)
     straight = np.zeros(n)
     poses = [straight]
     for seq in range(n + 1):
@@ -190,11 +198,13 @@ def identification_trajectory(params: NeckParams, move_time: float = MOVE_TIME,
 TRAJECTORIES = {"control-test": control_test_trajectory, "identification": identification_trajectory}
 
 
-def make_trajectory(name: str, params: NeckParams, duration_scale: float = 1.0) -> Trajectory:
-    """One of :data:`TRAJECTORIES` by name with its move and hold times scaled by ``duration_scale``."""
+def make_trajectory(name: str, params: NeckParams, duration_scale: float = 1.0, amplitude: float = 1.0) -> Trajectory:
+    """One of :data:`TRAJECTORIES` by name with its move and hold times scaled by ``duration_scale``
+    and its joint angles by ``amplitude`` (:func:`controllers.trajectories.make_trajectory` chooses
+    the amplitude that keeps a long neck's cable forces within f_max)."""
     if name not in TRAJECTORIES:
         raise ValueError(f"trajectory: unknown name {name!r} (known: {', '.join(TRAJECTORIES)})")
     if not np.isfinite(duration_scale) or duration_scale <= 0:
         raise ValueError(f"duration_scale: must be positive, got {duration_scale}")
     return TRAJECTORIES[name](params, move_time=MOVE_TIME * duration_scale,
-                               hold_time=HOLD_TIME * duration_scale)
+                               hold_time=HOLD_TIME * duration_scale, amplitude=amplitude)

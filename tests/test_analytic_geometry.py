@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import neck_sim.analytic as an
-from neck_sim.params import default_params
+from neck_sim.params import EXAMPLES, default_params, example_params
 
 
 def central_jacobian(fun, x, h=1e-4):
@@ -18,23 +18,34 @@ def central_jacobian(fun, x, h=1e-4):
     return np.stack(cols, -2)
 
 
-@pytest.mark.parametrize("n", [1, 3, 10])
-def test_z_matches_differentiated_lengths(n, rng):
-    p = default_params(n)
+NECKS = [("paper N=1", lambda: default_params(1)), ("paper N=3", lambda: default_params(3)),
+         ("paper N=10", lambda: default_params(10))] + [(name, lambda name=name: example_params(name))
+                                                        for name in EXAMPLES if name != "paper"]
+
+
+@pytest.mark.parametrize("make", [m for _, m in NECKS], ids=[k for k, _ in NECKS])
+def test_z_matches_differentiated_lengths(make, rng):
+    p = make()
+    n = p.n_joints
     alpha = rng.uniform(-np.pi / 3, np.pi / 3, (200, n))
     Z = an.transmission_matrix(alpha, p)
     fd = -central_jacobian(lambda a: an.cable_lengths(a, p), alpha)
-    assert Z.shape == (200, n, n + 1)
+    assert Z.shape == (200, n, p.n_cables)
     np.testing.assert_allclose(Z, fd, atol=1e-11, rtol=0)
 
 
-def test_zdot_matches_differentiated_z(params, rng):
-    alpha = rng.uniform(-1, 1, (100, 3))
-    alpha_dot = rng.normal(size=(100, 3))
+@pytest.mark.parametrize("make", [m for _, m in NECKS[1:]], ids=[k for k, _ in NECKS[1:]])
+def test_zdot_matches_differentiated_z(make, rng):
+    p = make()
+    alpha = rng.uniform(-1, 1, (100, p.n_joints))
+    alpha_dot = rng.normal(size=(100, p.n_joints))
     h = 1e-5
-    fd = (an.transmission_matrix(alpha + h * alpha_dot, params)
-          - an.transmission_matrix(alpha - h * alpha_dot, params)) / (2 * h)
-    np.testing.assert_allclose(an.transmission_matrix_dot(alpha, alpha_dot, params), fd, atol=1e-10)
+    fd = (an.transmission_matrix(alpha + h * alpha_dot, p) - an.transmission_matrix(alpha - h * alpha_dot, p)) / (2 * h)
+    np.testing.assert_allclose(an.transmission_matrix_dot(alpha, alpha_dot, p), fd, atol=1e-10)
+    k = an.cable_kinematics(alpha, alpha_dot, p)      # one pass gives the same three
+    np.testing.assert_array_equal(k.Zdot, an.transmission_matrix_dot(alpha, alpha_dot, p))
+    np.testing.assert_array_equal(k.Z, an.transmission_matrix(alpha, p))
+    np.testing.assert_array_equal(k.lengths, an.cable_lengths(alpha, p))
 
 
 def test_design_note_invariants(params, rng):

@@ -144,7 +144,7 @@ def test_estimate_outside_the_workspace_is_an_error(params):
     c.reset()
     ref = c.motor_reference(_static_reference(np.zeros(3)))
     c.step(np.zeros(4), ref)
-    far = motor_angles_rigid(np.radians([95.0, 0.0, 0.0]), params)
+    far = motor_angles_rigid(np.radians([95.0, 0.0, 0.0]), params, allow_outside_range=True)   # probes past the edge
     with pytest.raises(OutsideWorkspaceError, match="joint 1"):
         c.step(far, ref)
 

@@ -7,7 +7,7 @@ import pytest
 
 from neck_sim import crossval as CV
 from neck_sim.cli import main
-from neck_sim.params import default_params
+from neck_sim.params import EXAMPLES, CableRoute, Routing, default_params, example_params
 
 ISSUE_THRESHOLDS = {"lengths": 1e-9, "Z": 1e-6, "M": 1e-6, "g": 1e-6}
 
@@ -21,6 +21,29 @@ def test_mujoco_agrees_with_the_analytic_model(n):
         assert rows[q].max_rel <= ISSUE_THRESHOLDS[q], q
     assert rows["dq/dalpha"].max_rel <= 1e-6
     assert rep.ok
+
+
+@pytest.mark.parametrize("name", [k for k in EXAMPLES if k != "paper"])
+def test_mujoco_agrees_for_every_example_routing(name):
+    """The builder and the analytic model read the same routing (issue 15 item 2): every segment
+    kind and its mirror, helpers on both sides, m != N + 1 -- to the paper neck's thresholds."""
+    p = example_params(name)
+    rep = CV.crossval(p, samples=25, seed=7)
+    rows = {r.quantity: r for r in rep.rows}
+    assert rep.n_cables == p.n_cables
+    assert rows["lengths"].max_abs <= ISSUE_THRESHOLDS["lengths"]
+    for q in ("Z", "M", "g", "dq/dalpha"):
+        assert rows[q].max_rel <= 1e-6, q
+    assert rep.ok
+
+
+def test_a_wrong_routing_fails(params):
+    """One joint routed differently on the analytic side (strut instead of side) is caught."""
+    p = example_params("mixed4")
+    cables = list(p.routing.cables)
+    cables[1] = CableRoute("right", ("strut", "strut", "side"), 4)
+    rep = CV.crossval(p, samples=5, analytic_params=p.replace(routing=Routing(tuple(cables))))
+    assert {r.quantity for r in rep.rows if not r.ok} == {"lengths", "Z"}
 
 
 def test_payload_and_spring_changes_agree_too(params):
@@ -62,6 +85,16 @@ def test_cli_table_json_and_exit_codes(tmp_path, capsys, monkeypatch):
     assert main(["crossval", "--samples", "3"]) == 1
     assert "FAIL" in capsys.readouterr().out
     assert main(["crossval", "--samples", "0"]) == 2
+
+
+def test_cli_crossval_of_the_ten_joint_example(tmp_path, capsys):
+    path = tmp_path / "neck10x4.toml"
+    assert main(["params", "--example", "neck10x4", "-o", str(path)]) == 0
+    out = tmp_path / "cv.json"
+    assert main(["crossval", "--params", str(path), "--samples", "5", "--json", str(out)]) == 0
+    assert "N = 10, m = 4 cables" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["ok"] and data["n_joints"] == 10 and data["n_cables"] == 4 and len(data["routing"]) == 4
 
 
 def test_dynamics_report_logic():

@@ -47,7 +47,7 @@ def blind(tmp_path_factory):
 
 
 def _param(finding, name):
-    return finding["parameters"][name]["value"]
+    return finding.parameters[name].value
 
 
 # effect -> check of the finding against the hidden truth (case.effects / case.params)
@@ -118,18 +118,19 @@ def test_hidden_effect_is_named_located_and_measured(blind, name):
     diag = diagnose_log(path, model=",".join(case.model) or "rigid", settings=FAST)
     assert diag.verdict == case.expect, (case.description, diag.to_dict()["steps"][0]["candidates"][:3])
     finding = diag.findings[0]
-    assert finding["effect"] == case.expect
-    assert finding["evidence"]["holdout_improvement"] >= MARGIN
-    assert finding["evidence"]["significant"]
+    assert finding.effect == case.expect
+    assert finding.evidence.improvement >= MARGIN
+    assert finding.evidence.significant
     if case.joints:
-        assert finding["joints"] == [j + 1 for j in case.joints]
+        assert finding.joints == [j + 1 for j in case.joints]
     elif case.cables:
-        assert finding["cables"] == [c + 1 for c in case.cables]
+        assert finding.cables == [c + 1 for c in case.cables]
     CHECKS[name](finding, case)
     # the extended model predicts the held-out residual of its own kind better
-    g = finding["gain"]["residual_rms_crossvalidated"]
+    g = finding.gain
     kind = "elongation_m" if name in ("cable_elasticity", "tension_stiffening", "pretension") else "torque_Nm"
-    assert np.mean(g["after"][kind]) < np.mean(g["before"][kind])
+    assert np.mean(getattr(g.after.residual_rms_crossvalidated, kind)) < \
+        np.mean(getattr(g.before.residual_rms_crossvalidated, kind))
 
 
 def test_negative_control_gives_none(blind):
@@ -145,21 +146,21 @@ def test_paper_story_from_a_rigid_frictionless_model(blind):
     """§5: friction first (eqs 46-47), then elasticity (Table 1), then stiffening (Table 2)."""
     _, path = blind("none")
     diag = diagnose_log(path, model="rigid", settings=DiagnosisSettings(max_steps=4, resimulate=False))
-    assert [f["effect"] for f in diag.findings] == ["dry_friction", "cable_elasticity", "tension_stiffening"]
+    assert [f.effect for f in diag.findings] == ["dry_friction", "cable_elasticity", "tension_stiffening"]
     assert diag.steps[-1].verdict == "none"
     # each step removes most of the error it targets
     f1, f2, f3 = diag.findings
-    t = f1["gain"]["residual_rms_crossvalidated"]
-    assert np.mean(t["after"]["torque_Nm"]) < 0.1 * np.mean(t["before"]["torque_Nm"])
-    e2 = f2["gain"]["residual_rms_crossvalidated"]
-    assert np.mean(e2["after"]["elongation_m"]) < 0.4 * np.mean(e2["before"]["elongation_m"])
-    e3 = f3["gain"]["residual_rms_crossvalidated"]
-    assert np.mean(e3["after"]["tension_N"]) < 0.5 * np.mean(e3["before"]["tension_N"])
+    t1 = (f1.gain.before.residual_rms_crossvalidated, f1.gain.after.residual_rms_crossvalidated)
+    assert np.mean(t1[1].torque_Nm) < 0.1 * np.mean(t1[0].torque_Nm)
+    e2 = (f2.gain.before.residual_rms_crossvalidated, f2.gain.after.residual_rms_crossvalidated)
+    assert np.mean(e2[1].elongation_m) < 0.4 * np.mean(e2[0].elongation_m)
+    e3 = (f3.gain.before.residual_rms_crossvalidated, f3.gain.after.residual_rms_crossvalidated)
+    assert np.mean(e3[1].tension_N) < 0.5 * np.mean(e3[0].tension_N)
     # the identified friction is the plant's (Table 1), and alpha_hat improves as in §5.5
     fs = [_param(f1, f"f_s({i + 1})") for i in range(4)]
     np.testing.assert_allclose(fs, diag.data.params.friction.f_s, rtol=0.05)
-    a0 = diag.baseline["alpha_hat_vs_camera"]["holdout"]["mean_abs_deg"]
-    a1 = diag.final["alpha_hat_vs_camera"]["holdout"]["mean_abs_deg"]
+    a0 = diag.baseline.alpha_hat_vs_camera.holdout.mean_abs_deg
+    a1 = diag.final.alpha_hat_vs_camera.holdout.mean_abs_deg
     assert a1 < 0.75 * a0
 
 

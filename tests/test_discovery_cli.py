@@ -75,11 +75,15 @@ def test_cli_json_report_and_extended_model(viscous_log, tmp_path, capsys):
     case, path = viscous_log
     js, rep, ext = tmp_path / "d.json", tmp_path / "report", tmp_path / "model.json"
     code = main(["diagnose", str(path), "--steps", "1", "--json", str(js), "--report", str(rep),
-                 "--extended", str(ext), "--quiet"])
+                 "--extended", str(ext), "--quiet", "--alpha", "0.05", "--min-improvement", "0.03"])
     assert code == 0
     assert "verdict: viscous_friction" in capsys.readouterr().out
     d = json.loads(js.read_text())
     assert d["verdict"] == "viscous_friction"
+    # the method text says what was used
+    assert d["settings"]["alpha"] == 0.05 and d["settings"]["min_improvement"] == 0.03
+    assert "alpha (0.05)" in d["method"]["significance"] and "min_improvement (0.03)" in d["method"]["significance"]
+    assert "0.01" not in d["method"]["significance"]
     f = d["findings"][0]
     assert {"effect", "cables", "parameters", "evidence", "gain"} <= set(f)
     assert f["cables"] == [case.cables[0] + 1]
@@ -176,7 +180,8 @@ def test_look_alikes_are_told_apart_or_reported_together(monkeypatch):
 
     viscous, stribeck, payload = cand("viscous_friction", 0.20), cand("stribeck_friction", 0.15), cand("payload", 0.1)
     outcomes = {}
-    monkeypatch.setattr(disc, "encompass", lambda ctx, a, b: dict(a=a.term.name, b=b.term.name, **outcomes[b.term.name]))
+    monkeypatch.setattr(disc, "encompass", lambda ctx, a, b: disc.EncompassingTest(a.term.name, b.term.name, None, None,
+                                                                                   **outcomes[b.term.name]))
     # stribeck adds nothing to viscous, viscous adds to stribeck: viscous stands
     outcomes.update(stribeck_friction={"a_adds": True, "b_adds": False}, payload={"a_adds": True, "b_adds": True})
     assert disc.decide(None, [stribeck, viscous, payload])[0] == "viscous_friction"

@@ -28,7 +28,7 @@ CONTRACT_FIELDS = {  # written out from measured-data.md, independently of neck_
 }
 NECK_KEYS = {"n_joints", "b", "L", "r", "r_d", "R", "I_a", "control_rate_hz", "camera_rate_hz",
              "encoder_counts_per_turn", "spring_stiffness", "spring_rest_length", "bar_mass",
-             "diagonal_mass", "gravity", "f_min", "f_max"}
+             "diagonal_mass", "gravity", "f_min", "f_max", "n_cables"}
 
 
 @pytest.fixture(scope="module")

@@ -57,3 +57,97 @@ def test_partial_file_takes_defaults_and_unknown_keys_fail(tmp_path):
     path.write_text("[geometry\n")
     with pytest.raises(P.ParameterError, match="malformed"):
         P.load(path)
+
+
+# -- issue 14: messages that named the wrong thing or came as raw tracebacks ----------------------
+
+@pytest.mark.parametrize("field, value, kind", [
+    ("b", '"abc"', "number"), ("b", "true", "number"), ("b", "[0.05]", "number"),
+    ("alpha_max", '"1.5"', "number"), ("n_joints", '"abc"', "integer"), ("n_joints", "2.5", "integer"),
+])
+def test_scalar_of_the_wrong_type_names_the_field(tmp_path, field, value, kind):
+    path = tmp_path / "p.toml"
+    path.write_text(f"[geometry]\n{field} = {value}\n")
+    with pytest.raises(P.ParameterError, match=rf"geometry\.{field}: must be an? {kind}"):
+        P.load(path)
+
+
+@pytest.mark.parametrize("group, field, value", [
+    ("control", "rate_hz", '"fast"'), ("sensors", "encoder_counts_per_turn", '"2048"'),
+    ("cables", "t_cap", "false"), ("inertia", "gravity", '"9.81"')])
+def test_every_group_refuses_non_numbers(tmp_path, group, field, value):
+    path = tmp_path / "p.toml"
+    path.write_text(f"[{group}]\n{field} = {value}\n")
+    with pytest.raises(P.ParameterError, match=rf"{group}\.{field}: must be"):
+        P.load(path)
+
+
+@pytest.mark.parametrize("field", ["k", "lam", "c_a", "k_linear"])
+def test_cable_array_of_the_wrong_length_is_named(field):
+    with pytest.raises(P.ParameterError) as info:
+        P.from_dict({"cables": {field: [1.0, 2.0]}})
+    assert str(info.value).startswith(f"cables.{field}: expected 4 values"), str(info.value)
+
+
+@pytest.mark.parametrize("field", ["bar_mass", "diagonal_mass"])
+def test_massless_bars_are_refused_before_mujoco(field):
+    with pytest.raises(P.ParameterError, match=rf"inertia\.{field}: must be finite and positive"):
+        P.default_params().replace(**{f"inertia.{field}": 0.0})
+
+
+def test_t_min_above_f_max_is_refused():
+    with pytest.raises(P.ParameterError, match=r"actuation\.t_min: 120.0 N exceeds f_max = 100.0 N"):
+        P.default_params().replace(**{"actuation.t_min": 120.0})
+
+
+def test_one_joint_limit_in_the_parameters(tmp_path):
+    from neck_sim.cli import main
+    from neck_sim.native import MAX_CABLES
+
+    assert P.MAX_CABLES == MAX_CABLES                   # the compiled callback's arrays
+    assert P.default_params(P.MAX_CABLES - 1).n_cables == P.MAX_CABLES
+    with pytest.raises(P.ParameterError, match=rf"routing: {P.MAX_CABLES + 1} cables .* at most {P.MAX_CABLES}"):
+        P.default_params(P.MAX_CABLES)
+    with pytest.raises(P.ParameterError, match=rf"geometry\.n_joints: must be an integer between 1 and {P.MAX_CABLES}"):
+        P.default_params(40)
+    out = tmp_path / "p40.toml"
+    assert main(["params", "--n-joints", "40", "-o", str(out)]) == 2
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name, text", [("p.toml", ""), ("p.toml", "# only a comment\n"), ("p.json", "{}")])
+def test_empty_parameter_file_is_refused_naming_it(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(P.ParameterError, match=rf"{path}: the parameter file is empty"):
+        P.load(path)
+
+
+def test_control_rate_that_the_physics_step_cannot_divide():
+    from neck_sim.plant import Plant
+
+    with pytest.raises(ValueError) as info:
+        Plant(P.default_params().replace(**{"control.rate_hz": 7.0}))
+    msg = str(info.value)
+    assert msg.startswith("control.rate_hz = 7 Hz") and "0.0005 s" in msg and "None" not in msg, msg
+
+
+@pytest.mark.parametrize("forces", [{0: 10.0, 1: 10.0, 2: 10.0, 3: 10.0}, {10.0, 20.0, 30.0, 40.0}, "1234"])
+def test_plant_step_refuses_unordered_containers(forces):
+    from neck_sim.plant import Plant
+
+    plant = Plant()
+    with pytest.raises(ValueError, match="forces: expected 4 numbers"):
+        plant.step(forces)
+    plant.step([10.0, 10.0, 10.0, 10.0])            # the same values as a list are fine
+
+
+def test_replay_with_parameters_of_another_n_names_both(tmp_path):
+    from test_logs_fixtures import plant_run
+
+    from neck_sim.replay import replay
+
+    log = tmp_path / "run.mcap"
+    plant_run(log, seconds=0.1)
+    with pytest.raises(P.ParameterError, match=r"N = 2 joints but the log .*run\.mcap was recorded with N = 3"):
+        replay(log, params=P.default_params(2))

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from neck_sim.cli import main
-from neck_sim.cli.reproduce import ReproduceSettings
+from neck_sim.experiments import ReproduceSettings
 
 
 @pytest.mark.slow
@@ -37,3 +37,24 @@ def test_reproduce_writes_the_whole_report(tmp_path, capsys):
 def test_bad_duration_scale():
     with pytest.raises(ValueError, match="duration scale"):
         ReproduceSettings(scale=0.0)
+
+
+def test_paper_runs_are_the_papers_experiments(tmp_path, params):
+    """The workflow's closed-loop runs: the identification run (law 1), the §7 control tests (laws 1-3)
+    and Table 3 (law 2 on the identification trajectory; r = 0 in the controller only without pulleys)."""
+    from neck_sim.experiments import paper_runs
+
+    specs = paper_runs(params, ReproduceSettings(quick=True, seed=4), str(tmp_path))
+    by = {s.label: s for s in specs}
+    assert len(by) == 8 and by["identification"].law == 1 and by["identification"].trajectory == "identification"
+    assert [by[f"law {k}"].law for k in (1, 2, 3)] == [1, 2, 3]
+    table3 = [s for s in specs if s.label.startswith("table3")]
+    assert len(table3) == 4 and all(s.law == 2 and s.trajectory == "identification" for s in table3)
+    assert sum(s.rigid_cables for s in table3) == 2
+    for s in table3:
+        pulleys = "no-pulleys" not in s.label
+        assert (s.controller_params is None) == pulleys
+        if not pulleys:
+            assert s.controller_params.geometry.r == 0.0 and s.params.geometry.r > 0
+    assert all(s.seed == 4 and s.duration_scale == 0.5 and s.log_path.startswith(str(tmp_path)) for s in specs)
+    assert len({s.log_path for s in specs}) == 8

@@ -18,8 +18,8 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
 3. **Candidates**: every effect of the vocabulary not yet in the model (and whose prerequisite
    is: Stribeck needs dry friction, stiffening and pretension need elastic cables), added with
    its parameters per cable where it is per cable, its shape parameters chosen on the training
-   folds (a grid refined by golden-section search; a bounded search per cable for the rest
-   elongation), then cross-validated.
+   folds (a grid refined by a bounded 1-D search, scipy's ``minimize_scalar``; a bounded search
+   per cable for the rest elongation), then cross-validated.
 4. **Score** ``S``: the mean square residual of each channel (N joint torques, N+1 cable
    elongations) divided by the square of the baseline's primary training RMS of that channel,
    averaged within each residual type and then over the two types (each equation type counts
@@ -46,20 +46,35 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
    error in theta and alpha.  Forward selection repeats 3-5 from the extended model until nothing
    significant remains (at most ``max_steps`` findings).
 
-The result (:class:`Diagnosis`) has ``to_dict()`` with the stable fields ``verdict`` (an effect
-name, a list of names when ambiguous, or "none"), ``findings`` (ordered; each with ``effect``,
-``cables``, ``parameters``, ``evidence``, ``gain``) and ``baseline`` (plus ``final``,
-``extended_model``, ``steps``, ``split``, ``method``).
+The result (:class:`Diagnosis`) is typed: ``verdict``, ``findings`` (:class:`Finding`: effect,
+cables or joints, parameters, evidence, :class:`Gain`), ``baseline`` and ``final``
+(:class:`ModelSummary`), ``extended`` (:class:`ExtendedModel`), ``steps``.  Its ``to_dict()`` has
+the stable JSON fields ``verdict`` (an effect name, a list of names when ambiguous, or "none"),
+``findings`` (ordered; each with ``effect``, ``cables``, ``parameters``, ``evidence``, ``gain``)
+and ``baseline`` (plus ``final``, ``extended_model``, ``steps``, ``split``, ``settings`` and
+``method``, the method text written from the settings used).
+
+The stages, one module each: :mod:`~identification.diagnosis.settings`,
+:mod:`~identification.diagnosis.split`, :mod:`~identification.diagnosis.statistics`,
+:mod:`~identification.diagnosis.fitting`, :mod:`~identification.diagnosis.search`,
+:mod:`~identification.diagnosis.candidate`, :mod:`~identification.diagnosis.selection`,
+:mod:`~identification.diagnosis.gains`, :mod:`~identification.diagnosis.resimulation`,
+:mod:`~identification.diagnosis.parameters`, :mod:`~identification.diagnosis.result`,
+:mod:`~identification.diagnosis.pipeline`.
 """
 
 from identification.diagnosis.candidate import CandidateScore
-from identification.diagnosis.gains import alpha_hat_errors, resimulate
+from identification.diagnosis.gains import AlphaHatErrors, AngleErrors, ResidualRMS, alpha_hat_errors
+from identification.diagnosis.parameters import Parameter
 from identification.diagnosis.pipeline import diagnose, diagnose_log
-from identification.diagnosis.result import Diagnosis
+from identification.diagnosis.resimulation import Resimulation, ResimulationErrors, resimulate
+from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary, method_text
 from identification.diagnosis.selection import Step
 from identification.diagnosis.settings import MODEL_SHORTCUTS, DiagnosisSettings, parse_model
 from identification.diagnosis.split import Split, split_samples
 from identification.diagnosis.statistics import channel_weights, score
 
-__all__ = ["DiagnosisSettings", "Split", "split_samples", "CandidateScore", "Step", "Diagnosis", "diagnose",
-           "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "score", "channel_weights", "resimulate", "alpha_hat_errors"]
+__all__ = ["DiagnosisSettings", "Split", "split_samples", "CandidateScore", "Step", "Diagnosis", "Finding", "Gain",
+           "ModelSummary", "ExtendedModel", "Parameter", "ResidualRMS", "AngleErrors", "AlphaHatErrors", "Resimulation",
+           "ResimulationErrors", "diagnose", "diagnose_log", "parse_model", "MODEL_SHORTCUTS", "method_text", "score",
+           "channel_weights", "resimulate", "alpha_hat_errors"]

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import SHAPE_GRIDS, Fit, Term
+from identification.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
-from identification.diagnosis.search import REFINE, golden_section, search_pretension, shape_grid
+from identification.diagnosis.search import search_shape, shape_grid
 from identification.diagnosis.statistics import block_scores, score
 
 
@@ -35,7 +35,11 @@ class CandidateScore:
     def fit(self) -> Fit | None:
         return None if self.model is None else self.model.fit
 
+    def to_dict(self) -> dict:
+        return {"effect": self.term.name, **self.evidence()}
+
     def evidence(self) -> dict:
+        """The JSON evidence: held-out (cross-validated) improvement, p values, sign, shape."""
         return {"holdout_improvement": self.improvement, "holdout_score_ratio": 1.0 - self.improvement,
                 "primary_holdout_improvement": self.holdout_improvement,
                 "holdout_ratio_by_block": self.block_ratio, "p_holdout_wilcoxon": self.p_holdout,
@@ -43,29 +47,17 @@ class CandidateScore:
                 "significant": self.significant, "shape": dict(self.term.shape), "note": self.note}
 
 
-#: Magnitude parameters whose physical sign is fixed (a friction cannot push, a stiffness is > 0).
-SIGNED = {"dry_friction": "f_s", "viscous_friction": "c_v", "stribeck_friction": "df", "pulley_friction": "mu",
-           "cable_elasticity": "k", "tension_stiffening": "lambda", "payload": "payload"}
-
-
 def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
-    """False when a clearly non-zero magnitude of ``term`` (|z| >= 4, at least 25 % of the largest)
-    has the unphysical sign: the candidate then only reshapes another effect."""
-    sym = SIGNED.get(term.name)
-    if sym is None or not fit.has(sym):
-        return True, ""
-    v, s = fit.group(sym), fit.group_sigma(sym)
-    strong = (np.abs(v) >= 4 * s) & (np.abs(v) >= 0.25 * np.abs(v).max())
-    bad = strong & (v < 0)
-    if bad.any():
-        idx = ", ".join(str(i + 1) for i in np.nonzero(bad)[0])
-        return False, f"fitted {sym} < 0 on {'cable' if v.size > 1 else 'the head'} {idx}: not a {term.name}"
-    return True, ""
+    """False when a clearly non-zero magnitude of ``term`` has the unphysical sign (the effect's
+    ``sign_violation``): the candidate then only reshapes another effect."""
+    symbols = [col.symbol for col in term.effect.columns if fit.has(col.symbol)]
+    why = term.effect.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    return not why, why
 
 
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
-    """Fit base + ``name`` with its shape parameters chosen on the primary training folds (a grid,
-    refined by golden-section search for one-parameter shapes; a bounded search per cable of the
+    """Fit base + ``name`` with its shape parameters chosen on the primary training folds
+    (:func:`~identification.diagnosis.search.search_shape`, or a bounded search per cable for the
     pretension), cross-validate it and test it against the base."""
     notes: list[str] = []
     cache: dict = {}
@@ -80,38 +72,20 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
                 cache[term.shape] = None
         return cache[term.shape]
 
-    if name == "pretension":
-        best = search_pretension(ctx, trial)
-    else:
-        for shape in shape_grid(name):
-            trial(Term(name, shape))
-        done = [v for v in cache.values() if v is not None]
-        best = min(done, key=_value) if done else None
-        if name in REFINE and best is not None:
-            key, log_scale = REFINE[name]
-            grid = sorted(SHAPE_GRIDS[name][key])
-            i = grid.index(best[1].get(key))
-            lo = grid[i - 1] if i > 0 else (0.0 if not log_scale else grid[0] / 2)
-            hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]
-            to = (lambda u: float(np.exp(u))) if log_scale else (lambda u: u)
-            a, b = (np.log(lo), np.log(hi)) if log_scale else (lo, hi)
-            u = golden_section(lambda u: _value(trial(Term(name, ((key, round(to(u), 6)),)))), a, b, iterations=6)
-            best = min([best, trial(Term(name, ((key, round(to(u), 6)),)))], key=_value)
+    best = search_shape(ctx, name, trial)
     if best is None:
         return CandidateScore(Term(name, shape_grid(name)[0]), None, 0, math.nan, math.nan, 0.0, 0.0, {}, 1.0, 1.0,
                               False, False, "not identifiable: " + (notes[0] if notes else "no fit"))
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
-    imp, imp_ho, p_cv, p_tr = ctx.compare(ctx.base, ev, added)
+    cmp = ctx.compare(ctx.base, ev, added)
     every = np.ones(ctx.data.S, bool)
     bb = block_scores(ctx.base.cv, every, ctx.scales, ctx.data.n)
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
     valid, why = sign_ok(fit, term)
-    return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales), imp, imp_ho, ratio, p_cv, p_tr,
-                          valid, valid and ctx.passes(imp, p_cv, p_tr), why)
+    return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales), cmp.improvement,
+                          cmp.holdout_improvement, ratio, cmp.p_holdout, cmp.p_train, valid,
+                          valid and ctx.significant(cmp), why)
 
-
-def _value(entry) -> float:
-    return math.inf if entry is None else entry[0]

@@ -9,9 +9,10 @@ import numpy as np
 
 from identification.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext
-from identification.diagnosis.gains import alpha_hat_errors, resimulate, residual_rms
-from identification.diagnosis.result import (Diagnosis, all_parameters, cables_of, extended_dict, joints_of,
-                                             term_parameters)
+from identification.diagnosis.gains import alpha_hat_errors, residual_rms
+from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, term_parameters
+from identification.diagnosis.resimulation import resimulate
+from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary
 from identification.diagnosis.search import retune_shapes
 from identification.diagnosis.selection import run_step
 from identification.diagnosis.settings import DiagnosisSettings, parse_model
@@ -60,58 +61,32 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     # models compared: each step's baseline and the last extension (if the last step found one)
     evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
     fits = [e.fit for e in evaluated]
-    masks = {"holdout": split.holdout, "all": np.ones(data.S, bool)}
     t1 = time.perf_counter()
-    alpha = alpha_hat_errors(data, fits, masks) if s.alpha_hat else [None] * len(fits)
+    alpha = alpha_hat_errors(data, fits, split.holdout) if s.alpha_hat else [None] * len(fits)
     timings["alpha_hat"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     resim = {}
     if s.resimulate:
         for idx in sorted({0, len(fits) - 1}):
             p, e, rigid = plant_model(fits[idx], data.params)
-            resim[idx] = resimulate(data, p, e, rigid, split, masks, progress=progress)
+            resim[idx] = resimulate(data, p, e, rigid, split, progress=progress)
     timings["resimulation"] = time.perf_counter() - t1
-
-    def summary(idx: int) -> dict:
-        ev = evaluated[idx]
-        out = {"model": ev.fit.model.to_list(), "description": ev.fit.model.describe(),
-               "parameters": all_parameters(ev.fit),
-               "residual_rms_crossvalidated": residual_rms(data, ev.fit, ev.cv, masks["all"]),
-               "residual_rms_holdout": residual_rms(data, ev.fit, ev.fit.residuals(), split.holdout),
-               "residual_rms_train": residual_rms(data, ev.fit, ev.fit.residuals(), split.train)}
-        if alpha[idx] is not None:
-            out["alpha_hat_vs_camera"] = {k: v for k, v in alpha[idx].items() if k != "series"}
-        if idx in resim:
-            out["resimulation"] = {k: v for k, v in resim[idx].items() if k != "series"}
-        return out
-
-    summaries = [summary(i) for i in range(len(evaluated))]
+    every = np.ones(data.S, bool)
+    summaries = [ModelSummary(ev.fit.model, all_parameters(ev.fit), residual_rms(data, ev.fit, ev.cv, every),
+                              residual_rms(data, ev.fit, ev.fit.residuals(), split.holdout),
+                              residual_rms(data, ev.fit, ev.fit.residuals(), split.train),
+                              alpha[i], resim.get(i), ev.cv) for i, ev in enumerate(evaluated)]
     findings = []
     for i, st in enumerate(steps):
         c = st.chosen
         if c is None:
             continue
         ctx = StepContext(data, split, s, st.base, st.scales)
-        before, after = summaries[i], summaries[i + 1]
-        gain = {"residual_rms_crossvalidated": {"before": before["residual_rms_crossvalidated"],
-                                                "after": after["residual_rms_crossvalidated"]},
-                "residual_rms_holdout": {"before": before["residual_rms_holdout"],
-                                         "after": after["residual_rms_holdout"]}}
-        if "alpha_hat_vs_camera" in before and "alpha_hat_vs_camera" in after:
-            gain["alpha_hat_vs_camera_holdout"] = {"before": before["alpha_hat_vs_camera"]["holdout"],
-                                                   "after": after["alpha_hat_vs_camera"]["holdout"]}
-        if "resimulation" in before and "resimulation" in after:
-            gain["resimulation_holdout"] = {"before": before["resimulation"]["holdout"],
-                                            "after": after["resimulation"]["holdout"]}
-        findings.append({"effect": st.verdict if isinstance(st.verdict, list) else c.term.name,
-                         "cables": cables_of(c.fit, c.term), "joints": joints_of(c.fit, c.term),
-                         "parameters": term_parameters(ctx, c), "evidence": c.evidence(), "gain": gain,
-                         "step": i + 1, "model_after": c.fit.model.describe()})
-    series = {"alpha_hat": [a["series"] if a else None for a in alpha],
-              "resimulation": {k: v["series"] for k, v in resim.items()},
-              "cv_residuals": [e.cv for e in evaluated], "labels": [f.model.describe() for f in fits]}
-    return Diagnosis(source, model, split, tuple(steps), tuple(findings), summaries[0], summaries[-1],
-                     extended_dict(fits[-1], data.params), timings, data, series, s)
+        findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
+                                cables_of(c.fit, c.term), joints_of(c.fit, c.term), term_parameters(ctx, c), c,
+                                Gain(summaries[i], summaries[i + 1])))
+    return Diagnosis(source, model, split, tuple(steps), tuple(findings), tuple(summaries),
+                     ExtendedModel.of(fits[-1], data.params), timings, s, data)
 
 
 def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, params: NeckParams | None = None,

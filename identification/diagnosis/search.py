@@ -6,49 +6,66 @@ import math
 from itertools import product
 
 import numpy as np
-from scipy import stats
+from scipy import optimize
 
-from identification.candidates import SHAPE_GRIDS, FitState, MeasuredData, ModelSpec, Term, fit_model
+from identification.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
-from identification.diagnosis.statistics import score
+from identification.diagnosis.statistics import effective_samples, f_test_p, score
+from neck_sim import effects as effect_registry
 from neck_sim.analytic.dynamics import cable_stiffness
+from neck_sim.effects import Shape
 
 
 def shape_grid(name: str) -> list[tuple]:
-    grid = SHAPE_GRIDS.get(name)
+    """Every shape of candidate ``name`` on its grid (the product of its shape parameters' grids)."""
+    grid = grid_of(name)
     if not grid:
         return [()]
     keys = sorted(grid)
     return [tuple(zip(keys, vals)) for vals in product(*(grid[k] for k in keys))]
 
 
-#: Shape parameters refined by golden-section search between the best grid point's neighbours
-#: (log scale for rates, linear for the delay).
-REFINE = {"dry_friction": ("c_s", True), "pulley_friction": ("c", True), "actuation_delay": ("delay", False)}
+def refined_shape(name: str) -> Shape | None:
+    """The shape parameter of effect ``name`` refined by a bounded search between the best grid
+    point's neighbours (``Shape.refine``: log scale for rates, linear for the delay), if any."""
+    return next((sh for sh in effect_registry.get(name).shapes if sh.refine), None)
 
 
-def golden_section(f, lo: float, hi: float, iterations: int = 10) -> float:
-    """Minimiser of a 1-D function on [lo, hi] by golden-section search."""
-    g = (math.sqrt(5) - 1) / 2
-    a, b = lo, hi
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    for _ in range(iterations):
-        if fc < fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
-    return c if fc < fd else d
+def minimise_bounded(f, lo: float, hi: float, xatol: float) -> float:
+    """Minimiser of a 1-D function on [lo, hi] to about ``xatol`` (scipy's bounded Brent search)."""
+    return float(optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": xatol}).x)
 
 
-#: Search range of the rest elongation of each cable (m).
-PRETENSION_RANGE = (-1e-3, 5e-3)
+def search_shape(ctx: StepContext, name: str, trial):
+    """Best ``trial`` entry (score, term, fit) of candidate ``name``: per cable on a per-cable shape
+    (:func:`search_per_cable_offset`), else over its shape grid with the refined shape
+    (``Shape.refine``) then searched between the best grid point's neighbours (bounded, to 2 % of
+    that interval on the shape's scale); None when nothing fits."""
+    per_cable = next((sh for sh in effect_registry.get(name).shapes if sh.per_cable), None)
+    if per_cable is not None:
+        return search_per_cable_offset(ctx, trial, name, per_cable)
+    entries = [trial(Term(name, shape)) for shape in shape_grid(name)]
+    done = [e for e in entries if e is not None]
+    best = min(done, key=trial_score) if done else None
+    refine = refined_shape(name)
+    if refine is None or best is None:
+        return best
+    key, log_scale = refine.name, refine.refine == "log"
+    grid = sorted(refine.grid)
+    i = grid.index(best[1].get(key))
+    lo = grid[i - 1] if i > 0 else (0.0 if not log_scale else grid[0] / 2)
+    hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]
+    to = (lambda u: float(np.exp(u))) if log_scale else (lambda u: u)
+    a, b = (np.log(lo), np.log(hi)) if log_scale else (lo, hi)
+    u = minimise_bounded(lambda u: trial_score(trial(Term(name, ((key, round(to(u), 6)),)))), a, b, 0.02 * (b - a))
+    return min([best, trial(Term(name, ((key, round(to(u), 6)),)))], key=trial_score)
+
+
+def trial_score(entry) -> float:
+    """The training score of a ``trial`` entry (score, term, fit); inf for a failed fit (None)."""
+    return math.inf if entry is None else entry[0]
 
 
 def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
@@ -60,7 +77,7 @@ def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
     t = base.state.tension[sel, j]
     x = data.x[sel, j] + x0
     cols = [x, data.x_dot[sel, j]]
-    stiffening = base.model.has("tension_stiffening")
+    stiffening = base.has("lambda")              # the model's cable law has eq (54)'s lambda
     if stiffening:
         cols.append(x * t)
     A = np.stack(cols, 1)
@@ -74,33 +91,34 @@ def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
     return float(np.mean(r ** 2) / ctx.scales[data.n + j] ** 2)
 
 
-def search_pretension(ctx: StepContext, trial):
-    """Per cable, the rest elongation x_0 that best fits that cable's law (bounded golden-section
-    search on the training folds); the term keeps the cables whose offset passes an F-test at 1 %
-    on that cable's rows, else the best single cable."""
+def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
+    """Per cable, the rest elongation x_0 (``shape``, keys ``<shape.name>_<i>``, of effect ``name``)
+    that best fits that cable's law (bounded search on ``shape.bounds`` on the training folds);
+    the term keeps the cables whose offset passes an F-test at 1 % on that cable's rows, else the
+    best single cable."""
     data = ctx.data
-    fc = data.prep.cutoffs["common"].hz
-    per = min(1.0, 2.0 * fc / data.prep.rate_hz)
     found = []
     for j in range(data.C):
-        x = golden_section(lambda v, j=j: _cable_law_score(ctx, j, v), *PRETENSION_RANGE, iterations=14)
+        x = minimise_bounded(lambda v, j=j: _cable_law_score(ctx, j, v), *shape.bounds, xatol=1e-7)
         s0, s1 = _cable_law_score(ctx, j, 0.0), _cable_law_score(ctx, j, x)
-        n = max(int((data.taut[:, j] & ctx.split.train).sum() * per), 5)
-        F = (s0 - s1) / max(s1 / (n - 4), 1e-300)
-        found.append((float(stats.f.sf(F, 1, n - 4)) if s1 < s0 else 1.0, s1 / s0, j, round(x, 7)))
+        n = max(effective_samples(int((data.taut[:, j] & ctx.split.train).sum()), data.prep.cutoffs["common"].hz,
+                                  data.prep.rate_hz), 5)
+        found.append((f_test_p(s0, s1, 1, n - 4), s1 / s0, j, round(x, 7)))
     keep = [(j, x) for p, _, j, x in found if p < 0.01] or [min(found, key=lambda e: e[1])[2:]]
-    return trial(Term("pretension", tuple((f"x0_{j + 1}", x) for j, x in sorted(keep))))
+    return trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for j, x in sorted(keep))))
 
 
 def retune_shapes(data: MeasuredData, model: ModelSpec, split: Split, settings: DiagnosisSettings,
-            state: FitState | None, found: set) -> ModelSpec:
-    """Re-search the one-parameter shapes (c_s, pulley c, delay) of the terms the diagnosis added,
-    within a factor 2 (5 ms for the delay) of their values, on the primary training score."""
+                  state: FitState | None, found: set) -> ModelSpec:
+    """Re-search the refined shapes (``Shape.refine``: c_s, pulley c, delay) of the terms the
+    diagnosis added, within ``Shape.span`` of their values (a factor on log scale, +- on linear),
+    on the primary training score."""
     _, scales = fit_baseline(data, model, split, settings, state)
     for term in model.terms:
-        if term.name not in found or term.name not in REFINE:
+        shape = refined_shape(term.name)
+        if term.name not in found or shape is None:
             continue
-        key, log_scale = REFINE[term.name]
+        key, log_scale, span = shape.name, shape.refine == "log", shape.span
         v0 = term.get(key)
 
         def with_value(v, term=term, key=key, model=model):
@@ -115,8 +133,8 @@ def retune_shapes(data: MeasuredData, model: ModelSpec, split: Split, settings: 
                 return math.inf
             return score(fit.residuals(), split.train, scales)
 
-        lo, hi = (np.log(v0 / 2), np.log(2 * v0)) if log_scale else (max(v0 - 0.005, 0.0), v0 + 0.005)
-        u = golden_section(cost, lo, hi, iterations=7)
+        lo, hi = (np.log(v0 / span), np.log(span * v0)) if log_scale else (max(v0 - span, 0.0), v0 + span)
+        u = minimise_bounded(cost, lo, hi, 0.02 * (hi - lo))
         u0 = np.log(v0) if log_scale else v0
         if cost(u) < cost(u0):
             model = with_value(round(float(np.exp(u)) if log_scale else u, 6))[0]

@@ -6,11 +6,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import REQUIRES, FitState, MeasuredData, ModelSpec
+from identification.candidates import FitState, MeasuredData, ModelSpec
+from neck_sim import effects as effect_registry
 from identification.diagnosis.candidate import CandidateScore, evaluate_candidate
 from identification.diagnosis.fitting import Evaluated, StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
+from identification.diagnosis.statistics import Comparison, encompassing_outcome
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,27 +24,55 @@ class Step:
     candidates: tuple
     verdict: object                # effect name, list of names (ambiguous), or "none"
     chosen: CandidateScore | None
-    pairwise: tuple = ()           # encompassing tests: dicts
+    pairwise: tuple = ()           # EncompassingTest between the leader and the other significant ones
 
     @property
     def extended(self) -> Evaluated | None:
         return None if self.chosen is None else self.chosen.model
 
+    def to_dict(self, index: int) -> dict:
+        """JSON of step ``index`` (0-based): its model, verdict, candidates (best first), tests."""
+        model = self.base.fit.model
+        return {"step": index + 1, "model": model.to_list(), "description": model.describe(), "verdict": self.verdict,
+                "candidates": [c.to_dict() for c in sorted(self.candidates, key=lambda c: -c.improvement)],
+                "pairwise": [t.to_dict() for t in self.pairwise]}
 
-def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> dict:
+
+@dataclass(frozen=True)
+class EncompassingTest:
+    """Leader ``a`` and look-alike ``b`` fitted together: does each add significantly to the other?
+    ``error`` says why the joint fit failed (then neither adds)."""
+
+    a: str
+    b: str
+    b_adds_to_a: Comparison | None
+    a_adds_to_b: Comparison | None
+    a_adds: bool
+    b_adds: bool
+    error: str = ""
+
+    def to_dict(self) -> dict:
+        if self.error:
+            return {"a": self.a, "b": self.b, "error": self.error, "a_adds": self.a_adds, "b_adds": self.b_adds}
+
+        def side(c: Comparison, adds: bool) -> dict:
+            return {"improvement": c.improvement, "p_holdout": c.p_holdout, "p_train": c.p_train, "significant": adds}
+
+        return {"a": self.a, "b": self.b, "b_adds_to_a": side(self.b_adds_to_a, self.b_adds),
+                "a_adds_to_b": side(self.a_adds_to_b, self.a_adds), "a_adds": self.a_adds, "b_adds": self.b_adds}
+
+
+def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> EncompassingTest:
     """Fit base + A + B; does each add significantly to the other?"""
     try:
         both = ctx.evaluate(ctx.base.fit.model.plus(a.term).plus(b.term), a.fit.state)
     except ValueError as exc:
-        return {"a": a.term.name, "b": b.term.name, "error": str(exc), "a_adds": False, "b_adds": False}
-    imp_b, _, p_cv_b, p_tr_b = ctx.compare(a.model, both, b.added_params)
-    imp_a, _, p_cv_a, p_tr_a = ctx.compare(b.model, both, a.added_params)
-    b_adds = ctx.passes(imp_b, p_cv_b, p_tr_b, 0.5)
-    a_adds = ctx.passes(imp_a, p_cv_a, p_tr_a, 0.5)
-    return {"a": a.term.name, "b": b.term.name,
-            "b_adds_to_a": {"improvement": imp_b, "p_holdout": p_cv_b, "p_train": p_tr_b, "significant": b_adds},
-            "a_adds_to_b": {"improvement": imp_a, "p_holdout": p_cv_a, "p_train": p_tr_a, "significant": a_adds},
-            "a_adds": a_adds, "b_adds": b_adds}
+        return EncompassingTest(a.term.name, b.term.name, None, None, False, False, str(exc))
+    b_to_a = ctx.compare(a.model, both, b.added_params)
+    a_to_b = ctx.compare(b.model, both, a.added_params)
+    # half the minimum improvement: the second effect only has to add to the first
+    return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, ctx.significant(a_to_b, 0.5),
+                            ctx.significant(b_to_a, 0.5))
 
 
 def decide(ctx: StepContext, cands) -> tuple[object, CandidateScore | None, tuple]:
@@ -59,9 +89,10 @@ def decide(ctx: StepContext, cands) -> tuple[object, CandidateScore | None, tupl
     for other in sig[1:]:
         test = encompass(ctx, best, other)
         pairwise.append(test)
-        if test.get("b_adds") and not test.get("a_adds"):
+        outcome = encompassing_outcome(test.a_adds, test.b_adds)
+        if outcome == "b":
             best = other                     # the other one explains all the leader does, and more
-        elif not test.get("b_adds") and not test.get("a_adds"):
+        elif outcome == "both":
             tied.append(other)
     tied = [t for t in tied if t is not best]
     if tied:
@@ -77,7 +108,8 @@ def run_step(data: MeasuredData, model: ModelSpec, split: Split, settings: Diagn
     fit, scales = fit_baseline(data, model, split, settings, state)
     ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
     ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales)
-    names = [n for n in settings.candidates if not model.has(n) and (REQUIRES.get(n) is None or model.has(REQUIRES[n]))]
+    names = [n for n in settings.candidates
+             if not model.has(n) and all(model.has(r) for r in effect_registry.get(n).requires)]
     cands = []
     for name in tqdm(names, desc=desc, unit="effect", disable=not progress, leave=False):
         cands.append(evaluate_candidate(ctx, name))

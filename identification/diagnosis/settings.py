@@ -6,17 +6,18 @@ import json
 import os
 from dataclasses import dataclass, field
 
-from identification.candidates import EFFECTS, PAPER_MODEL, ModelSpec
+from identification.candidates import ModelSpec, effect_names, paper_model
 from identification.preprocessing import PreprocessSettings
+from neck_sim.effects import CableElasticity, DryFriction
 
 
 #: ``--model`` shortcuts (any comma-separated list of effect names is also accepted).
 MODEL_SHORTCUTS = {
-    "paper": PAPER_MODEL,
+    "paper": paper_model(),
     "rigid": (),                                   # rigid cables, no friction: eq (25)
     "rigid-frictionless": (),
-    "rigid-friction": ("dry_friction",),
-    "linear": ("dry_friction", "cable_elasticity"),  # Table 1's constant stiffness
+    "rigid-friction": (DryFriction.name,),
+    "linear": (DryFriction.name, CableElasticity.name),  # Table 1's constant stiffness
 }
 
 
@@ -26,7 +27,7 @@ def parse_model(spec) -> ModelSpec:
     if isinstance(spec, ModelSpec):
         return spec
     if spec is None:
-        return ModelSpec.of(*PAPER_MODEL)
+        return ModelSpec.of(*paper_model())
     s = str(spec).strip()
     if s.endswith(".json") or os.path.sep in s:
         try:
@@ -43,10 +44,10 @@ def parse_model(spec) -> ModelSpec:
     if s in MODEL_SHORTCUTS:
         return ModelSpec.of(*MODEL_SHORTCUTS[s])
     names = [x.strip() for x in s.split(",") if x.strip() and x.strip() != "none"]
-    unknown = [x for x in names if x not in EFFECTS]
+    unknown = [x for x in names if x not in effect_names()]
     if unknown:
         raise ValueError(f"model: unknown {', '.join(unknown)} (shortcuts: {', '.join(MODEL_SHORTCUTS)}; "
-                         f"effects: {', '.join(EFFECTS)})")
+                         f"effects: {', '.join(effect_names())})")
     return ModelSpec.of(*names)
 
 
@@ -60,7 +61,7 @@ class DiagnosisSettings:
     min_improvement: float = 0.02
     alpha: float = 0.01
     max_steps: int = 3
-    candidates: tuple = EFFECTS
+    candidates: tuple = field(default_factory=effect_names)     # every registered effect
     resimulate: bool = True
     alpha_hat: bool = True
     iterations: int = 3
@@ -71,6 +72,13 @@ class DiagnosisSettings:
             raise ValueError("moves_per_block must be >= 1 and holdout_every >= 2")
         if not (0 < self.alpha < 1 and 0 <= self.min_improvement < 1 and self.chunk_s > 0):
             raise ValueError("alpha in (0, 1), min_improvement in [0, 1), chunk_s > 0")
-        unknown = [c for c in self.candidates if c not in EFFECTS]
+        unknown = [c for c in self.candidates if c not in effect_names()]
         if unknown:
             raise ValueError(f"candidates: unknown {unknown}")
+
+    def to_dict(self) -> dict:
+        """The method settings (the pre-processing's are recorded with the data)."""
+        return {"moves_per_block": self.moves_per_block, "holdout_every": self.holdout_every, "chunk_s": self.chunk_s,
+                "min_improvement": self.min_improvement, "alpha": self.alpha, "max_steps": self.max_steps,
+                "candidates": list(self.candidates), "resimulate": self.resimulate, "alpha_hat": self.alpha_hat,
+                "iterations": self.iterations}

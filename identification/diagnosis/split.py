@@ -27,6 +27,10 @@ class Split:
     method: str
 
     @property
+    def n_chunks(self) -> int:
+        return int(self.chunk.max() + 1)
+
+    @property
     def train(self) -> np.ndarray:
         return self.fold != 1
 
@@ -36,7 +40,7 @@ class Split:
 
     def to_dict(self) -> dict:
         return {"method": self.method, "folds": self.n_folds, "primary_train_samples": int(self.train.sum()),
-                "primary_holdout_samples": int(self.holdout.sum()), "chunks": int(self.chunk.max() + 1),
+                "primary_holdout_samples": int(self.holdout.sum()), "chunks": self.n_chunks,
                 "blocks": [{"start_s": round(a, 3), "end_s": round(b, 3), "fold": int(f),
                             "primary_held_out": f == 1} for a, b, f in self.blocks]}
 

@@ -1,11 +1,22 @@
-"""The score S and the significance tests of the diagnosis, as pure functions of residual arrays."""
+"""The score S and the significance tests of the diagnosis, as pure functions of residual arrays.
+
+Residuals are (S, N + C) arrays: N joint-torque channels (N m, eq 51) then C = N + 1 cable
+elongation channels (m); NaN marks a slack cable's sample (left out).  ``scales`` (N + C,) are
+the baseline's per-channel training RMS.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
 from identification.diagnosis.split import Split
+from neck_sim.effects.base import clearly_nonzero   # the one rule, beside the effects' sign checks
+
+__all__ = ["mean_square", "channel_weights", "score", "block_scores", "chunk_reductions", "wilcoxon_p", "improvement",
+           "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome"]
 
 
 def mean_square(res: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -29,6 +40,7 @@ def score(res: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> float:
 
 
 def block_scores(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints: int) -> dict:
+    """Normalised mean square per residual type over ``mask``: {"torque": ..., "cable": ...}."""
     v = mean_square(res, mask) / scales ** 2
     return {"torque": float(v[:n_joints].mean()), "cable": float(v[n_joints:].mean())}
 
@@ -50,3 +62,49 @@ def wilcoxon_p(reductions: np.ndarray) -> float:
     if r.size < 5:
         return 1.0
     return float(stats.wilcoxon(r, alternative="greater").pvalue)
+
+
+def improvement(s_ref: float, s_cand: float) -> float:
+    """Relative score improvement 1 - S_cand / S_ref (0 when S_ref is 0)."""
+    return 1.0 - s_cand / s_ref if s_ref > 0 else 0.0
+
+
+def f_test_p(s_ref: float, s_cand: float, added: int, dof: int) -> float:
+    """p of the F-test that ``added`` more parameters lower a mean square from ``s_ref`` to
+    ``s_cand`` with ``dof`` residual degrees of freedom; 1 when nothing is added or gained."""
+    if added <= 0 or not s_cand < s_ref:
+        return 1.0
+    F = ((s_ref - s_cand) / added) / max(s_cand / dof, 1e-300)
+    return float(stats.f.sf(F, added, dof))
+
+
+def effective_samples(n_samples: int, cutoff_hz: float, rate_hz: float) -> int:
+    """Independent samples among ``n_samples`` low-passed at ``cutoff_hz`` and sampled at
+    ``rate_hz``: one per 1 / (2 f_c) s (Nyquist)."""
+    return int(n_samples * min(1.0, 2.0 * cutoff_hz / rate_hz))
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A model against a reference: cross-validated improvement over all samples, the same on
+    the primary held-out fold, one-sided Wilcoxon p over chunks, training F-test p."""
+
+    improvement: float
+    holdout_improvement: float
+    p_holdout: float
+    p_train: float
+
+    def significant(self, alpha: float, min_improvement: float) -> bool:
+        """Improves by at least ``min_improvement`` with both tests below ``alpha``."""
+        return self.improvement >= min_improvement and self.p_holdout < alpha and self.p_train < alpha
+
+
+def encompassing_outcome(a_adds: bool, b_adds: bool) -> str:
+    """Who stands between a leader A and a look-alike B fitted together: ``"a"`` when B adds
+    nothing A lacks (or both add: A leads), ``"b"`` when only B adds, ``"both"`` when neither
+    adds anything to the other (the data cannot tell them apart)."""
+    if b_adds and not a_adds:
+        return "b"
+    if not a_adds and not b_adds:
+        return "both"
+    return "a"

@@ -29,7 +29,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, _side_terms, check_alpha, side_terms_kernel
+from neck_sim.analytic.geometry import (_joint_local, _psi_derivatives, _side_terms, check_alpha, check_pose,
+                                        side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
                              SEG_RIGHT_SIDE, SEG_RIGHT_STRUT, NeckParams)
@@ -155,25 +156,25 @@ def _z(seg: np.ndarray, params: NeckParams) -> np.ndarray:
     return -np.swapaxes(_gather(seg, _cases(params)), -1, -2)
 
 
-def cable_lengths(alpha, params: NeckParams) -> np.ndarray:
+def cable_lengths(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for any routing), shape (..., m), m."""
-    a = check_alpha(alpha, params.n_joints)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     return _lengths(a, params, _evaluate(a, params, (0,))[0])
 
 
-def transmission_matrix(alpha, params: NeckParams) -> np.ndarray:
+def transmission_matrix(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, m), m."""
-    a = check_alpha(alpha, params.n_joints)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     return _z(_evaluate(a, params, (1,))[1], params)
 
 
-def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams) -> np.ndarray:
+def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, m), m/s.
 
     Column j of Z depends on alpha_i only through row i, so Zdot_ij = (dZ_ij/dalpha_i) alpha_dot_i.
     """
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     return _z(_evaluate(a, params, (2,))[2], params) * ad[..., :, None]
 
@@ -184,23 +185,23 @@ class CableKinematics(NamedTuple):
     Zdot: np.ndarray     # (..., N, m), m/s
 
 
-def cable_kinematics(alpha, alpha_dot, params: NeckParams) -> CableKinematics:
+def cable_kinematics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> CableKinematics:
     """Lengths, Z and Zdot in one pass (what a dynamics step needs)."""
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     seg = _evaluate(a, params, (0, 1, 2))
     return CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params) * ad[..., :, None])
 
 
-def elongation(theta, alpha, params: NeckParams) -> np.ndarray:
+def elongation(theta, alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
     a = params.actuation
-    return cable_lengths(alpha, params) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
+    return cable_lengths(alpha, params, allow_outside_range=allow_outside_range) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
 
 
-def motor_angles_rigid(alpha, params: NeckParams, elongation=None) -> np.ndarray:
+def motor_angles_rigid(alpha, params: NeckParams, elongation=None, *, allow_outside_range: bool = False) -> np.ndarray:
     """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., m), rad."""
     a = params.actuation
     x = 0.0 if elongation is None else np.asarray(elongation, dtype=float)
-    return (a.R / a.r_d) * (x - cable_lengths(alpha, params))
+    return (a.R / a.r_d) * (x - cable_lengths(alpha, params, allow_outside_range=allow_outside_range))

@@ -27,7 +27,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
-from neck_sim.analytic.geometry import check_alpha, corner_terms_kernel, side_terms_kernel, forward_kinematics
+from neck_sim.analytic.geometry import (check_alpha, check_pose, corner_terms_kernel, forward_kinematics,
+                                        side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
@@ -163,14 +164,14 @@ def _linkage_rows(a, ad, const, M, c, G) -> None:
         linkage_kernel(a[r], ad[r], const, M[r], c[r], G[r])
 
 
-def linkage_dynamics(alpha, alpha_dot, params: NeckParams) -> LinkageDynamics:
+def linkage_dynamics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> LinkageDynamics:
     """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched over leading axes.
 
     alpha, alpha_dot (..., N) rad, rad/s; M_m (..., N, N) kg m^2, c_m, g (..., N) N m
     (:func:`linkage_kernel`, one sample at a time).
     """
     n = params.n_joints
-    a = check_alpha(alpha, n)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     a, ad = np.broadcast_arrays(a, ad)
     batch = a.shape[:-1]
@@ -183,38 +184,38 @@ def linkage_dynamics(alpha, alpha_dot, params: NeckParams) -> LinkageDynamics:
     return LinkageDynamics(M.reshape(batch + (n, n)), c.reshape(batch + (n,)), G.reshape(batch + (n,)))
 
 
-def mass_matrix(alpha, params: NeckParams, motors: bool = True) -> np.ndarray:
+def mass_matrix(alpha, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """Inertia matrix M(alpha) of eq (24) (with motors) or M_m (without), (..., N, N), kg m^2."""
-    a = check_alpha(alpha, params.n_joints)
-    M = linkage_dynamics(a, np.zeros_like(a), params).M
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    M = linkage_dynamics(a, np.zeros_like(a), params, allow_outside_range=True).M
     if motors:
-        Z = transmission_matrix(a, params)
+        Z = transmission_matrix(a, params, allow_outside_range=True)
         M = M + params.actuation.reflected_inertia * Z @ np.swapaxes(Z, -1, -2)
     return M
 
 
-def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True) -> np.ndarray:
+def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """Coriolis/centrifugal vector c(alpha, alpha_dot) of eq (26) corrected, (..., N), N m.
 
     Motor part: I_a (R/r_d)^2 Z Zdot^T alpha_dot (erratum 5: not Zdot Z^T).
     """
-    c = linkage_dynamics(alpha, alpha_dot, params).c
+    c = linkage_dynamics(alpha, alpha_dot, params, allow_outside_range=allow_outside_range).c
     if motors:
-        ck = cable_kinematics(alpha, alpha_dot, params)
+        ck = cable_kinematics(alpha, alpha_dot, params, allow_outside_range=True)
         zdt_ad = np.einsum("...ij,...i->...j", ck.Zdot, np.asarray(alpha_dot, dtype=float))
         c = c + params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", ck.Z, zdt_ad)
     return c
 
 
-def gravity_spring_torque(alpha, params: NeckParams) -> np.ndarray:
+def gravity_spring_torque(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """g(alpha): gradient of the gravity and side-spring potential (eq 25), (..., N), N m."""
-    a = check_alpha(alpha, params.n_joints)
-    return linkage_dynamics(a, np.zeros_like(a), params).g
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    return linkage_dynamics(a, np.zeros_like(a), params, allow_outside_range=True).g
 
 
-def potential_energy(alpha, params: NeckParams) -> np.ndarray:
+def potential_energy(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Gravity + side-spring potential (J), from the forward kinematics (independent of g)."""
-    kin = forward_kinematics(alpha, params)
+    kin = forward_kinematics(alpha, params, allow_outside_range=allow_outside_range)
     inert = params.inertia
     corners = kin.corners                                  # (..., N, 4, 2): A, B, C, D
     y_ad = 0.5 * (corners[..., 0, 1] + corners[..., 3, 1])
@@ -229,10 +230,10 @@ def potential_energy(alpha, params: NeckParams) -> np.ndarray:
     return v + 0.5 * (k * ((left - l0) ** 2 + (right - l0) ** 2)).sum(-1)
 
 
-def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True) -> np.ndarray:
+def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """1/2 alpha_dot^T M alpha_dot (J)."""
     ad = np.asarray(alpha_dot, dtype=float)
-    return 0.5 * np.einsum("...i,...ij,...j->...", ad, mass_matrix(alpha, params, motors), ad)
+    return 0.5 * np.einsum("...i,...ij,...j->...", ad, mass_matrix(alpha, params, motors, allow_outside_range=allow_outside_range), ad)
 
 
 @dual
@@ -280,13 +281,13 @@ def _stiffness(tension, k, lam):
 
 
 def cable_stiffness(tension, k, lam) -> np.ndarray:
-    """Secant stiffness k + lambda t of eq (54), (..., N+1) N/m, for tensions t (..., N+1) N
+    """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
     (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
     return _stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float), np.asarray(lam, dtype=float))
 
 
 def static_elongation(tension, k, lam) -> np.ndarray:
-    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., N+1) m, 0 for t <= 0.
+    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., m) m, 0 for t <= 0.
 
     The one definition of elongation from tension; :func:`elongation_step` and
     :func:`elongation_series` add the damping c_a x_dot."""
@@ -299,20 +300,20 @@ def _euler_elongation(x, tension, dt, c_a, stiffness):
 
 
 def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
-    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (N+1,) m.
+    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (m,) m.
 
-    ``x`` (..., N+1) m the elongation at the start of the step, ``tension`` (..., N+1) N (>= 0)
+    ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
     applied during it, ``dt`` s, ``c_a`` N s/m > 0.  The compiled control step calls the same
     formulas' twins (``_stiffness.jit``, ``_euler_elongation.jit``)."""
     return _euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
 
 
 def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
-    """Elongations x (T, N+1) m of eq (54) for tensions (T, N+1) N held per sample of ``dt`` s.
+    """Elongations x (T, m) m of eq (54) for tensions (T, m) N held per sample of ``dt`` s.
 
     Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
     x_inf = :func:`static_elongation` (stable for any dt; c_a = 0 gives the static elongation);
-    ``x0`` (N+1,) m defaults to the static elongation of the first sample."""
+    ``x0`` (m,) m defaults to the static elongation of the first sample."""
     tension = np.asarray(tension, dtype=float)
     c_a = np.asarray(c_a, dtype=float)
     stiff = cable_stiffness(tension, k, lam)
@@ -328,14 +329,14 @@ def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
     return x
 
 
-def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True) -> np.ndarray:
+def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """alpha_ddot of eq (32) with inextensible cables (x_c = 0), (..., N), rad/s^2.
 
     Motor speeds for friction follow eq (21): theta_dot = (R/r_d) Z^T alpha_dot.
     """
     act = params.actuation
-    ck = cable_kinematics(alpha, alpha_dot, params)
-    lk = linkage_dynamics(alpha, alpha_dot, params)
+    ck = cable_kinematics(alpha, alpha_dot, params, allow_outside_range=allow_outside_range)
+    lk = linkage_dynamics(alpha, alpha_dot, params, allow_outside_range=True)
     Zt = np.swapaxes(ck.Z, -1, -2)
     ad = np.asarray(alpha_dot, dtype=float)
     ia = act.reflected_inertia
@@ -358,15 +359,15 @@ class ElasticState(NamedTuple):
     theta_dot: np.ndarray
 
 
-def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True):
+def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True, *, allow_outside_range: bool = False):
     """(alpha_ddot, theta_ddot, tension) of eqs (29), (30) with elastic cables (eq 54)."""
     act = params.actuation
-    ck = cable_kinematics(state.alpha, state.alpha_dot, params)
+    ck = cable_kinematics(state.alpha, state.alpha_dot, params, allow_outside_range=allow_outside_range)
     ratio = act.r_d / act.R
     x = ck.lengths + ratio * state.theta
     x_dot = -np.einsum("...ij,...i->...j", ck.Z, state.alpha_dot) + ratio * state.theta_dot
     t = cable_tension(x, x_dot, params)
-    lk = linkage_dynamics(state.alpha, state.alpha_dot, params)
+    lk = linkage_dynamics(state.alpha, state.alpha_dot, params, allow_outside_range=True)
     rhs = np.einsum("...ij,...j->...i", ck.Z, t) - lk.c - lk.g
     alpha_ddot = np.linalg.solve(lk.M, rhs[..., None])[..., 0]
     fr = motor_friction(state.theta_dot, params) if friction else 0.0
@@ -376,19 +377,20 @@ def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: boo
 
 def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], duration: float,
                      params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
-                     alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10):
+                     alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10,
+                     allow_outside_range: bool = False):
     """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (m,) N; returns (t, ElasticState)."""
     from scipy.integrate import solve_ivp
 
     n, m = params.n_joints, params.n_cables
-    a0 = check_alpha(alpha0, n, "alpha0")
+    a0 = check_pose(alpha0, params, "alpha0", allow_outside_range=allow_outside_range)
     th0 = np.asarray(theta0, dtype=float).reshape(m)
     ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
     td0 = np.zeros(m) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
 
     def rhs(t, y):
         st = ElasticState(y[:n], y[n:2 * n], y[2 * n:2 * n + m], y[2 * n + m:])
-        add, tdd, _ = elastic_derivative(st, forces(t), params, friction)
+        add, tdd, _ = elastic_derivative(st, forces(t), params, friction, allow_outside_range=allow_outside_range)
         return np.concatenate([st.alpha_dot, add, st.theta_dot, tdd])
 
     times = np.arange(0.0, duration + 0.5 * sample_dt, sample_dt)
@@ -402,16 +404,17 @@ def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], dura
 
 def simulate_rigid(alpha0, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,
                    *, sample_dt: float = 1e-3, friction: bool = True, alpha_dot0=None,
-                   rtol: float = 1e-10, atol: float = 1e-12):
+                   rtol: float = 1e-10, atol: float = 1e-12, allow_outside_range: bool = False):
     """Integrate eq (32) with inextensible cables (scipy DOP853); returns (t, alpha, alpha_dot)."""
     from scipy.integrate import solve_ivp
 
     n = params.n_joints
-    a0 = check_alpha(alpha0, n, "alpha0")
+    a0 = check_pose(alpha0, params, "alpha0", allow_outside_range=allow_outside_range)
     ad0 = np.zeros(n) if alpha_dot0 is None else np.asarray(alpha_dot0, dtype=float)
 
     def rhs(t, y):
-        return np.concatenate([y[n:], rigid_acceleration(y[:n], y[n:], forces(t), params, friction)])
+        add = rigid_acceleration(y[:n], y[n:], forces(t), params, friction, allow_outside_range=allow_outside_range)
+        return np.concatenate([y[n:], add])
 
     times = np.arange(0.0, duration + 0.5 * sample_dt, sample_dt)
     sol = solve_ivp(rhs, (0.0, times[-1]), np.concatenate([a0, ad0]), t_eval=times, method="DOP853",

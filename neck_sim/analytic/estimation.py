@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from neck_sim.analytic.cables import _segments, transmission_matrix
-from neck_sim.analytic.geometry import check_alpha, check_cables
+from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
+from neck_sim.analytic.dynamics import static_elongation
+from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
 from neck_sim.params import SEG_RIGHT_END, SEG_RIGHT_STRUT, NeckParams
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
+           "cable_stretch_at_f_max",
            "estimate_alpha_pinv"]
 
 
@@ -113,7 +115,8 @@ def _pinv_rows(Z, rhs, out) -> int:
     return -1
 
 
-def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) -> np.ndarray:
+def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None, *,
+                   allow_outside_range: bool = False) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
     Needs at least as many cables as joints (m >= N), so that Z has full row rank and
@@ -124,12 +127,12 @@ def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) ->
     if m < n:
         raise ValueError(f"pinv_increment: {m} cables cannot determine {n} joint angles (eq 35 needs m >= N)")
     act = params.actuation
-    a = check_alpha(alpha_hat, n, "alpha_hat")
+    a = check_pose(alpha_hat, params, "alpha_hat", allow_outside_range)
     dth = check_cables(d_theta, m, "d_theta")
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
         rhs = rhs - check_cables(d_elongation, m, "d_elongation")
-    Z = transmission_matrix(a, params)
+    Z = transmission_matrix(a, params, allow_outside_range=True)
     batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
     rows = int(np.prod(batch))
     Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
@@ -142,11 +145,25 @@ def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None) ->
     return out.reshape(batch + (n,))
 
 
-def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None) -> np.ndarray:
+def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:
+    """Static elongation of each cable at the force limit f_max by eq (54), (m,) m."""
+    cab = params.cables
+    return static_elongation(np.full(params.n_cables, params.actuation.f_max), cab.k, cab.lam)
+
+
+def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None, *,
+                        tol: float | None = None) -> np.ndarray:
     """alpha_hat over a time series by eq (35) corrected, all m cables, shape (..., T, N), rad.
 
     ``theta`` (..., T, m); ``elongation`` (..., T, m) or None; ``alpha0`` (..., N) the pose at
     the first sample (default straight).  Vectorised over the leading batch axes, sequential in T.
+
+    More cables than joints over-determine the pose: after the fit, the cable lengths of
+    alpha_hat must match the ones the motors allow, l_c - l_c0 = x_c - (r_d/R) theta (both taken
+    from the first sample).  Motor angles whose mismatch exceeds ``tol`` (m; default the norm of
+    :func:`cable_stretch_at_f_max`, the most that taut cables within f_max can explain) are
+    reached by no pose, nor are estimates leaving |alpha| <= alpha_max: both raise
+    :class:`UnreachableError` naming the first offending sample.
     """
     n, m = params.n_joints, params.n_cables
     th = check_cables(theta, m, "theta")
@@ -155,11 +172,54 @@ def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None)
     x = None if elongation is None else check_cables(elongation, m, "elongation")
     if x is not None and x.shape[-2] != th.shape[-2]:
         raise ValueError(f"elongation: {x.shape[-2]} samples but theta has {th.shape[-2]}")
-    a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_alpha(alpha0, n, "alpha0")
+    a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_pose(alpha0, params, "alpha0")
     out = np.empty(th.shape[:-1] + (n,))
     out[..., 0, :] = a
     for t in range(1, th.shape[-2]):
         dx = None if x is None else x[..., t, :] - x[..., t - 1, :]
-        a = a + pinv_increment(a, th[..., t, :] - th[..., t - 1, :], params, dx)
+        a = a + pinv_increment(a, th[..., t, :] - th[..., t - 1, :], params, dx, allow_outside_range=True)
         out[..., t, :] = a
+    _check_reachable(out, th, x, params, np.linalg.norm(cable_stretch_at_f_max(params)) if tol is None else tol)
     return out
+
+
+def _check_reachable(alpha_hat, theta, elongation, params: NeckParams, tol: float, iterations: int = 20) -> None:
+    """Raise UnreachableError at the first sample where alpha_hat leaves the joint range or where no
+    pose's m cable lengths come within ``tol`` (m) of the ones the motors allow.
+
+    The distance is the least-squares one: samples over ``tol`` at alpha_hat are refined by
+    Gauss-Newton (eq 35's own step, with the length mismatch as right-hand side) before judging,
+    so that the linearisation error of eq (35) over a fast motion is never taken for a mismatch.
+    """
+    act = params.actuation
+    amax = params.geometry.alpha_max
+    outside = ~np.all(np.abs(alpha_hat) <= amax, axis=-1)                 # (..., T), NaN counts as outside
+    allowed = -(act.r_d / act.R) * theta if elongation is None else elongation - (act.r_d / act.R) * theta
+    target = cable_lengths(alpha_hat[..., :1, :], params) + allowed - allowed[..., :1, :]
+    with np.errstate(invalid="ignore"):
+        lengths = cable_lengths(np.where(outside[..., None], 0.0, alpha_hat), params)
+    mismatch = np.linalg.norm(lengths - target, axis=-1)
+    refine = ~outside & ~(mismatch <= tol)
+    if np.any(refine):
+        a, goal = alpha_hat[refine], target[refine]
+        with np.errstate(invalid="ignore"):
+            for _ in range(iterations):
+                gap = goal - cable_lengths(a, params, allow_outside_range=True)
+                a = a + pinv_increment(a, np.zeros_like(goal), params, gap, allow_outside_range=True)
+            mismatch[refine] = np.linalg.norm(cable_lengths(a, params, allow_outside_range=True) - goal, axis=-1)
+    bad = outside | ~(mismatch <= tol)
+    if not np.any(bad):
+        return
+    first = int(np.argmax(np.any(bad.reshape(-1, bad.shape[-1]), axis=0)))   # earliest sample over the batch
+    batch = tuple(int(i) for i in np.argwhere(bad[..., first])[0])
+    idx = batch + (first,)
+    where = f"sample {first}" + (f" of series {batch}" if batch else "")
+    if outside[idx]:
+        j = int(np.argmax(~(np.abs(alpha_hat[idx]) <= amax)))
+        raise UnreachableError(
+            f"theta: at {where} the motor angles need joint {j + 1} at {np.degrees(alpha_hat[idx][j]):.1f} deg, "
+            f"outside |alpha| <= {np.degrees(amax):.4g} deg (unreachable pose, encoder jump or wrong cable order)")
+    raise UnreachableError(
+        f"theta: at {where} the {params.n_cables} cable lengths the motors allow are "
+        f"{mismatch[idx] * 1e3:.1f} mm from those of any pose (taut cables within f_max explain at most "
+        f"{tol * 1e3:.1f} mm): no pose reaches these motor angles (encoder jump, slipped cable or wrong cable order)")

@@ -23,7 +23,7 @@ from neck_sim.jit import dual
 from neck_sim.params import NeckParams
 
 __all__ = ["SideLengths", "side_lengths", "joint_corners", "psi", "Kinematics",
-           "forward_kinematics", "rotation", "check_alpha", "check_cables"]
+           "forward_kinematics", "rotation", "PoseRangeError", "check_alpha", "check_pose", "check_cables"]
 
 
 class SideLengths(NamedTuple):
@@ -46,9 +46,28 @@ def _check_last_axis(arr, size: int, name: str, what: str) -> np.ndarray:
     return a
 
 
-def check_alpha(alpha, n_joints: int, name: str = "alpha") -> np.ndarray:
-    """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem."""
-    return _check_last_axis(alpha, n_joints, name, "one angle per X-joint")
+class PoseRangeError(ValueError):
+    """Joint angles outside |alpha| <= ``geometry.alpha_max``, where the model is not valid."""
+
+
+def check_alpha(alpha, n_joints: int, name: str = "alpha", alpha_max: float | None = None) -> np.ndarray:
+    """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem.
+
+    With ``alpha_max`` (rad), angles beyond |alpha| <= alpha_max raise :class:`PoseRangeError`.
+    """
+    a = _check_last_axis(alpha, n_joints, name, "one angle per X-joint")
+    if alpha_max is not None and not np.all(np.abs(a) <= alpha_max):
+        idx = tuple(int(i) for i in np.argwhere(np.abs(a) > alpha_max)[0])
+        raise PoseRangeError(
+            f"{name}: joint {idx[-1] + 1} at {np.degrees(a[idx]):.2f} deg (index {idx}) is outside the joint "
+            f"range |alpha| <= {np.degrees(alpha_max):.2f} deg (geometry.alpha_max); "
+            "pass allow_outside_range=True to evaluate the model there")
+    return a
+
+
+def check_pose(alpha, params: NeckParams, name: str = "alpha", allow_outside_range: bool = False) -> np.ndarray:
+    """:func:`check_alpha` against the neck's joint range, unless ``allow_outside_range``."""
+    return check_alpha(alpha, params.n_joints, name, None if allow_outside_range else params.geometry.alpha_max)
 
 
 def check_cables(values, n_cables: int, name: str) -> np.ndarray:
@@ -186,10 +205,10 @@ class Kinematics(NamedTuple):
     head_angle: np.ndarray
 
 
-def forward_kinematics(alpha, params: NeckParams) -> Kinematics:
+def forward_kinematics(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> Kinematics:
     """Corners, bar frames and head pose of the N-joint neck for joint angles alpha (..., N)."""
     g = params.geometry
-    a = check_alpha(alpha, g.n_joints)
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     batch = a.shape[:-1]
     origin = np.zeros(batch + (2,))
     phi = np.zeros(batch)

@@ -25,7 +25,9 @@ COMMANDS: dict[str, str] = {
     "identify": "identify_cmd",
     "simulate": "simulate_cmd",
     "diagnose": "diagnose_cmd",
+    "effects": "effects_cmd",
     "render": "render_cmd",
+    "design": "design_cmd",
 }
 
 

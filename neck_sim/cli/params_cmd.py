@@ -8,13 +8,25 @@ HELP = "print every constant with unit and source, or write a parameter file to 
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--n-joints", type=int, default=3, help="number of X-joints N (default 3)")
+    parser.add_argument("--n-joints", type=int, default=None, help="number of X-joints N (default 3)")
     parser.add_argument("--load", metavar="PATH", help="show this parameter file (.json/.toml) instead of the defaults")
+    parser.add_argument("--example", choices=sorted(P.EXAMPLES),
+                        help="start from an example neck: "
+                             + "; ".join(f"{k}: {v[2]}" for k, v in P.EXAMPLES.items()))
     parser.add_argument("-o", "--output", metavar="PATH", help="write the parameters to PATH (.json or .toml)")
 
 
 def run(args) -> int:
-    params = P.load(args.load) if args.load else P.default_params(args.n_joints)
+    chosen = [opt for opt, given in (("--load", args.load), ("--example", args.example),
+                                     ("--n-joints", args.n_joints is not None)) if given]
+    if len(chosen) > 1:
+        raise ValueError(f"{' and '.join(chosen)}: choose one source of parameters")
+    if args.load:
+        params = P.load(args.load)
+    elif args.example:
+        params = P.example_params(args.example)
+    else:
+        params = P.default_params(3 if args.n_joints is None else args.n_joints)
     if args.output:
         P.save(params, args.output)
         print(f"wrote {args.output}")

@@ -20,11 +20,11 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from neck_sim.cli.reproduce import ReproduceSettings, reproduce
+    from neck_sim.experiments import ReproduceSettings, reproduce
 
     settings = ReproduceSettings(out=args.out, quick=args.quick, seed=args.seed, workers=args.workers, scale=args.duration_scale,
                                  progress=not args.no_progress, render=not args.no_render)
-    results = reproduce(settings)
-    print(f"wrote {settings.out}/report.md and results.json "
-          f"({sum(results['timings_s'].values()):.0f} s; logs in {settings.out}/logs)")
+    rep = reproduce(settings)
+    print(f"wrote {rep.report_path} and {rep.results_path} ({sum(rep.timings.values()):.0f} s; "
+          f"logs in {rep.out}/logs)")
     return 0

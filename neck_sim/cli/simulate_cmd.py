@@ -71,7 +71,7 @@ def run(args) -> int:
     if args.cable_model is not None:
         kwargs["cable_model"] = args.cable_model
     progress = not args.no_progress
-    print(f"{name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}")
+    print(f"{traj.name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}")
 
     if args.table3:
         results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,

@@ -22,10 +22,12 @@ class ActuationDelay(Effect):
 
     name: ClassVar[str] = "actuation_delay"
     description: ClassVar[str] = "the commanded force acts late"
+    abbreviation: ClassVar[str] = "delay"            # column heads of tables
     kind: ClassVar[str] = "command"
     shapes: ClassVar[tuple] = (Shape("delay", "s", default=0.005, grid=(0.002, 0.005, 0.010, 0.020, 0.040),
                                      refine="linear", span=0.005, profile_step=5e-4),)
     blind_magnitude: ClassVar[float] = 0.010    # s
+    blind_unit: ClassVar[str] = "s"
     delay: float = 0.006
 
     def __post_init__(self):

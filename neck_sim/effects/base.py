@@ -178,6 +178,7 @@ class Effect:
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""       # one line, the vocabulary table
+    abbreviation: ClassVar[str] = ""      # a few letters for table columns (default: the name)
     kind: ClassVar[str] = ""              # motor | params | command | elongation | camera | mujoco
     baseline: ClassVar[bool] = False      # part of the paper's model (lives in NeckParams)
     magnitude_field: ClassVar[str] = ""   # the field the effect's force is linear in
@@ -193,6 +194,7 @@ class Effect:
     uses_tension: ClassVar[bool] = False        # columns need the tension estimate (iterated fit)
     # blind tests
     blind_magnitude: ClassVar[float | None] = None
+    blind_unit: ClassVar[str] = ""              # of blind_magnitude
 
     # -- parameters
     def parameter_names(self) -> tuple[str, ...]:

@@ -23,12 +23,14 @@ class CableElasticity(Effect):
 
     name: ClassVar[str] = "cable_elasticity"
     description: ClassVar[str] = "elastic cables: stiffness k and damping c_a, eq (39)"
+    abbreviation: ClassVar[str] = "elast"            # column heads of tables
     kind: ClassVar[str] = "params"
     baseline: ClassVar[bool] = True
     acts_on_cable_law: ClassVar[bool] = True
     elastic_cables: ClassVar[bool] = True
     columns: ClassVar[tuple] = (Column("k", "N/m"), Column("c_a", "N s/m", signed=False))
     blind_magnitude: ClassVar[float] = 1.0      # scale of the paper's stiffness (baseline with rigid cables)
+    blind_unit: ClassVar[str] = "x Table 2 k"
     k: tuple | None = None
     c_a: tuple | None = None
 

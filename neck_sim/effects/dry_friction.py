@@ -24,12 +24,14 @@ class DryFriction(MotorEffect):
 
     name: ClassVar[str] = "dry_friction"
     description: ClassVar[str] = "arctan dry friction at the motors, eq (37)"
+    abbreviation: ClassVar[str] = "dry"            # column heads of tables
     baseline: ClassVar[bool] = True
     magnitude_field: ClassVar[str] = "f_s"
     columns: ClassVar[tuple] = (Column("f_s", "N"),)
     shapes: ClassVar[tuple] = (Shape("c_s", "s/rad", default=0.5, grid=(0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
                                      refine="log", span=2.0),)
     blind_magnitude: ClassVar[float] = 12.0     # N, f_s on one cable (baseline without friction)
+    blind_unit: ClassVar[str] = "N"
     f_s: tuple | float | None = None
     c_s: float | None = None
     cables: tuple | None = None
@@ -60,8 +62,9 @@ class DryFriction(MotorEffect):
     def motor_force(self, theta_dot, tension=None, params: NeckParams | None = None):
         if params is None and (self.f_s is None or self.c_s is None):
             raise ValueError("dry_friction.motor_force: needs params when f_s or c_s is not set")
-        fs, cs = self.resolved(params) if params is not None else (np.asarray(self.f_s, float), self.c_s)
-        return (2 / np.pi) * np.arctan(cs * np.asarray(theta_dot, dtype=float)) * fs
+        td = np.asarray(theta_dot, dtype=float)
+        fs, cs = self.resolved(params) if params is not None else (self.per_cable(td.shape[-1]), self.c_s)
+        return (2 / np.pi) * np.arctan(cs * td) * fs
 
     def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
         """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., N+1)."""

@@ -31,9 +31,11 @@ class Payload(Effect):
 
     name: ClassVar[str] = "payload"
     description: ClassVar[str] = "an unmodelled mass at the head"
+    abbreviation: ClassVar[str] = "payload"            # column heads of tables
     kind: ClassVar[str] = "params"
     columns: ClassVar[tuple] = (Column("payload", "kg", per="one"),)
     blind_magnitude: ClassVar[float] = 0.08     # kg at the head
+    blind_unit: ClassVar[str] = "kg"
     mass: float = 0.05
 
     def __post_init__(self):

@@ -30,12 +30,14 @@ class Pretension(Effect):
 
     name: ClassVar[str] = "pretension"
     description: ClassVar[str] = "cables already stretched when the encoders were zeroed"
+    abbreviation: ClassVar[str] = "pret"            # column heads of tables
     kind: ClassVar[str] = "elongation"
     magnitude_field: ClassVar[str] = "elongation"
     acts_on_cable_law: ClassVar[bool] = True
     requires: ClassVar[tuple] = (CableElasticity.name,)
     shapes: ClassVar[tuple] = (Shape("x0", "m", per_cable=True, bounds=PRETENSION_RANGE, profile_step=1e-4),)
     blind_magnitude: ClassVar[float] = 1.5e-3   # m on one cable
+    blind_unit: ClassVar[str] = "m"
     elongation: tuple | float = 1e-3
     cables: tuple | None = None
 

@@ -23,12 +23,14 @@ class PulleyFriction(MotorEffect):
 
     name: ClassVar[str] = "pulley_friction"
     description: ClassVar[str] = "friction at the pulleys proportional to the cable tension"
+    abbreviation: ClassVar[str] = "pulley"            # column heads of tables
     magnitude_field: ClassVar[str] = "mu"
     acts_on_cable_law: ClassVar[bool] = True
     uses_tension: ClassVar[bool] = True
     columns: ClassVar[tuple] = (Column("mu", "-"),)
     shapes: ClassVar[tuple] = (Shape("c", "s/rad", default=0.5, grid=(0.5, 2.0, 8.0), refine="log", span=2.0),)
     blind_magnitude: ClassVar[float] = 0.15     # fraction of the tension
+    blind_unit: ClassVar[str] = ""
     mu: tuple | float = 0.1
     c: float = 0.5
     cables: tuple | None = None

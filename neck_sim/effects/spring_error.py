@@ -34,9 +34,11 @@ class SpringError(Effect):
 
     name: ClassVar[str] = "spring_error"
     description: ClassVar[str] = "side springs stiffer or softer than nominal"
+    abbreviation: ClassVar[str] = "spring"            # column heads of tables
     kind: ClassVar[str] = "params"
     columns: ClassVar[tuple] = (Column("dk", "N/m", per="joint", signed=False),)
     blind_magnitude: ClassVar[float] = 0.5      # relative stiffness error on one joint
+    blind_unit: ClassVar[str] = "relative"
     stiffness_scale: float = 1.2
     rest_length_offset: float = 0.0
     joints: tuple | None = None

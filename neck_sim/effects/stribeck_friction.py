@@ -25,12 +25,14 @@ class StribeckFriction(MotorEffect):
 
     name: ClassVar[str] = "stribeck_friction"
     description: ClassVar[str] = "breakaway friction above the dry friction at low speed"
+    abbreviation: ClassVar[str] = "strib"            # column heads of tables
     magnitude_field: ClassVar[str] = "df"
     columns: ClassVar[tuple] = (Column("df", "N"),)
     shapes: ClassVar[tuple] = (Shape("smoothing", "rad/s", default=0.5, grid=(0.15, 0.5, 1.5)),
                                Shape("speed", "rad/s", default=5.0, grid=(1.5, 3.0, 6.0, 12.0)))
     requires: ClassVar[tuple] = (DryFriction.name,)      # a breakaway bump on top of dry friction
     blind_magnitude: ClassVar[float] = 8.0              # N of extra breakaway friction
+    blind_unit: ClassVar[str] = "N"
     df: tuple | float = 5.0
     speed: float = 5.0
     smoothing: float = 0.5

@@ -23,6 +23,7 @@ class TensionStiffening(Effect):
 
     name: ClassVar[str] = "tension_stiffening"
     description: ClassVar[str] = "cable stiffness growing with tension, lambda of eq (54)"
+    abbreviation: ClassVar[str] = "stiff"            # column heads of tables
     kind: ClassVar[str] = "params"
     baseline: ClassVar[bool] = True
     acts_on_cable_law: ClassVar[bool] = True
@@ -30,6 +31,7 @@ class TensionStiffening(Effect):
     requires: ClassVar[tuple] = (CableElasticity.name,)
     columns: ClassVar[tuple] = (Column("lambda", "1/m"),)
     blind_magnitude: ClassVar[float] = 1.0      # scale of the paper's lambda (baseline with linear cables)
+    blind_unit: ClassVar[str] = "x Table 2 lambda"
     lam: tuple | None = None
 
     def __post_init__(self):

@@ -22,9 +22,11 @@ class ViscousFriction(MotorEffect):
 
     name: ClassVar[str] = "viscous_friction"
     description: ClassVar[str] = "friction proportional to the motor speed"
+    abbreviation: ClassVar[str] = "visc"            # column heads of tables
     magnitude_field: ClassVar[str] = "c_v"
     columns: ClassVar[tuple] = (Column("c_v", "N s/rad"),)
     blind_magnitude: ClassVar[float] = 0.15     # N s/rad at the motor shaft
+    blind_unit: ClassVar[str] = "N s/rad"
     c_v: tuple | float = 0.2
     cables: tuple | None = None
 

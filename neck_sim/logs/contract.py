@@ -6,16 +6,17 @@ in integer ns since the start of the run; every message also carries ``t`` in fl
 =================== ================================================ ==============================
 topic               fields (SI)                                      who may read it
 =================== ================================================ ==============================
-``/neck/motors``    t, theta [N+1] rad, force [N+1] N                measured (required)
+``/neck/motors``    t, theta [m] rad, force [m] N                    measured (required)
 ``/neck/camera``    t, alpha [N] rad (video, about 30 Hz)            measured
 ``/neck/reference`` t, alpha_d [N] rad                               measured
 ``/neck/estimate``  t, alpha_hat [N] rad                             measured
-``/neck/truth``     t, alpha [N], alpha_dot [N] rad/s, tension [N+1] simulation only
-                    N, elongation [N+1] m
+``/neck/truth``     t, alpha [N], alpha_dot [N] rad/s, tension [m]   simulation only
+                    N, elongation [m] m
 =================== ================================================ ==============================
 
-A metadata record ``neck`` (strings) holds the nominal constants the experimenter knows; it never
-holds friction or cable parameters.  ``NeckParams`` <-> ``neck`` record conversion lives here.
+N joints, m cables (``n_cables`` in the ``neck`` record, default N + 1; ``routing`` says which cable
+is which when it is not the paper's).  A metadata record ``neck`` (strings) holds the nominal
+constants the experimenter knows; it never holds friction or cable parameters.  ``NeckParams`` <-> ``neck`` record conversion lives here.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import json
 import math
 from dataclasses import dataclass
 
-from neck_sim.params import NeckParams, ParameterError, default_params
+from neck_sim.params import NeckParams, ParameterError, Routing, default_params, paper_routing, to_dict
 
 __all__ = ["LogError", "TopicSpec", "TOPICS", "TOPIC_BY_NAME", "NECK_RECORD", "RUN_RECORD",
            "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic"]
@@ -37,7 +38,7 @@ class LogError(ValueError):
 NECK_RECORD = "neck"
 RUN_RECORD = "run"
 
-# Per-field length: "joints" = N, "cables" = N + 1.
+# Per-field length: "joints" = N, "cables" = m (the routing's cable count, N + 1 by default).
 _JOINTS, _CABLES = "joints", "cables"
 
 
@@ -51,8 +52,9 @@ class TopicSpec:
     fields: tuple[tuple[str, str, str, str], ...]   # (field, length kind, unit, description)
     description: str
 
-    def lengths(self, n_joints: int) -> tuple[int, ...]:
-        return tuple(n_joints if kind == _JOINTS else n_joints + 1 for _, kind, _, _ in self.fields)
+    def lengths(self, n_joints: int, n_cables: int | None = None) -> tuple[int, ...]:
+        m = n_joints + 1 if n_cables is None else n_cables
+        return tuple(n_joints if kind == _JOINTS else m for _, kind, _, _ in self.fields)
 
     @property
     def field_names(self) -> tuple[str, ...]:
@@ -93,13 +95,13 @@ def resolve_topic(name: str) -> TopicSpec:
     return spec
 
 
-def topic_schema(spec: TopicSpec, n_joints: int) -> dict:
-    """The jsonschema (draft 2020-12) of one topic for an N-joint neck."""
+def topic_schema(spec: TopicSpec, n_joints: int, n_cables: int | None = None) -> dict:
+    """The jsonschema (draft 2020-12) of one topic for an N-joint neck with m cables (default N + 1)."""
     props = {"t": {"type": "number", "minimum": 0, "description": "sample time since the start of the run (s)"}}
-    for (name, _, unit, desc), n in zip(spec.fields, spec.lengths(n_joints)):
+    for (name, kind, unit, desc), n in zip(spec.fields, spec.lengths(n_joints, n_cables)):
         props[name] = {"type": "array", "items": {"type": "number"}, "minItems": n, "maxItems": n,
                        "description": f"{desc} ({unit}); index k is "
-                                      f"{'cable/motor' if n == n_joints + 1 else 'X-joint'} k+1"}
+                                      f"{'cable/motor' if kind == _CABLES else 'X-joint'} k+1"}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": spec.schema_name,
             "description": spec.description, "type": "object", "properties": props,
             "required": ["t", *spec.field_names]}
@@ -133,12 +135,49 @@ def _get(params: NeckParams, path: str):
 
 
 def neck_metadata(params: NeckParams) -> dict[str, str]:
-    """The ``neck`` record for nominal ``params``: strings, decimal numbers, JSON lists, SI units."""
+    """The ``neck`` record for nominal ``params``: strings, decimal numbers, JSON lists, SI units.
+
+    ``n_cables`` is always written; ``routing`` (the JSON list of the parameter file's
+    ``routing.cables``) only when it is not the paper's routing for N.
+    """
     out = {}
     for key, (path, _) in _METADATA_KEYS.items():
         value = _get(params, path)
         out[key] = json.dumps(list(value)) if isinstance(value, tuple) else repr(value)
+    out["n_cables"] = repr(params.n_cables)
+    if params.routing != paper_routing(params.n_joints):
+        out["routing"] = json.dumps(to_dict(params)["routing"]["cables"])
     return out
+
+
+def _routing_from_metadata(meta: dict[str, str], n: int) -> Routing:
+    """The routing of a ``neck`` record: its ``routing`` key, else the paper's (N + 1 cables)."""
+    m = n + 1
+    if "n_cables" in meta:
+        try:
+            m = json.loads(meta["n_cables"])
+        except (json.JSONDecodeError, TypeError):
+            m = None
+        if isinstance(m, float) and m.is_integer():
+            m = int(m)
+        if not isinstance(m, int) or isinstance(m, bool) or m < 1:
+            raise LogError(f"metadata record {NECK_RECORD!r}: n_cables = {meta['n_cables']!r} is not an integer >= 1")
+    if "routing" not in meta:
+        if m != n + 1:
+            raise LogError(f"metadata record {NECK_RECORD!r}: n_cables = {m} differs from the paper's N + 1 = {n + 1} "
+                           "and there is no 'routing' key saying which cable is which (a JSON list of the "
+                           "parameter file's routing.cables tables)")
+        return paper_routing(n)
+    try:
+        routing = Routing(cables=json.loads(meta["routing"]))
+        routing.check_joints(n)
+    except (json.JSONDecodeError, TypeError) as exc:
+        raise LogError(f"metadata record {NECK_RECORD!r}: key 'routing' is not a JSON list of cable tables ({exc})") from None
+    except ParameterError as exc:
+        raise LogError(f"metadata record {NECK_RECORD!r}: key 'routing': {exc}") from None
+    if routing.n_cables != m:
+        raise LogError(f"metadata record {NECK_RECORD!r}: n_cables = {m} but the routing has {routing.n_cables} cables")
+    return routing
 
 
 def params_from_metadata(meta: dict[str, str]) -> NeckParams:
@@ -173,7 +212,8 @@ def params_from_metadata(meta: dict[str, str]) -> NeckParams:
         if not float(c).is_integer():
             raise LogError(f"metadata record {NECK_RECORD!r}: encoder_counts_per_turn = {c!r} is not an integer")
         values["sensors.encoder_counts_per_turn"] = int(c)
+    routing = _routing_from_metadata(meta, n)
     try:
-        return default_params(n).replace(**values)
+        return default_params(n, routing).replace(**values)
     except ParameterError as exc:
         raise LogError(f"metadata record {NECK_RECORD!r}: {exc}") from None

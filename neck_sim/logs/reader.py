@@ -212,7 +212,7 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
         samples = {}
         for spec in present:
             log_times, data = payloads.get(spec.topic) or _Payloads.concat([], [])
-            samples[spec.name] = _decode(path, spec, n, log_times, data)
+            samples[spec.name] = _decode(path, spec, n, params.n_cables, log_times, data)
     return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
                attachments=attachments, message_counts=counts, window=(start, end), **samples)
 
@@ -364,12 +364,12 @@ _TEMPLATES: dict[tuple[str, int], tuple[bytes, bool, int]] = {}
 _TO_NUMBERS = bytes(c if chr(c) in "0123456789.+-eE," else ord(" ") for c in range(256))
 
 
-def _template(spec: TopicSpec, n: int):
+def _template(spec: TopicSpec, n: int, m: int):
     """(number-free skeleton of one message as the writer lays it out, whether a key holds an 'e',
     numbers per message)."""
-    key = (spec.name, n)
+    key = (spec.name, n, m)
     if key not in _TEMPLATES:
-        lengths = spec.lengths(n)
+        lengths = spec.lengths(n, m)
         msg = {"t": 0, **{f: [0] * k for f, k in zip(spec.field_names, lengths)}}
         text = json.dumps(msg, separators=(",", ":")).encode()
         keys_have_e = any(set(f) & set("eE") for f in spec.field_names)
@@ -377,13 +377,13 @@ def _template(spec: TopicSpec, n: int):
     return _TEMPLATES[key]
 
 
-def _decode_fast(spec: TopicSpec, n: int, data: "_Payloads") -> np.ndarray | None:
+def _decode_fast(spec: TopicSpec, n: int, m: int, data: "_Payloads") -> np.ndarray | None:
     """(T, K) numbers when every message has the writer's layout, else None.
 
     The skeleton check (all messages, numbers deleted, equal the template) guarantees every number
     sits where the template puts it; the numbers are then parsed in one C call.
     """
-    skeleton, keys_have_e, k = _template(spec, n)
+    skeleton, keys_have_e, k = _template(spec, n, m)
     if data.blob.translate(None, _NUMBER_CHARS) != (skeleton + b",") * (len(data) - 1) + skeleton:
         return None
     text = data.blob.translate(_TO_NUMBERS)
@@ -400,7 +400,7 @@ def _decode_fast(spec: TopicSpec, n: int, data: "_Payloads") -> np.ndarray | Non
     return values.reshape(len(data), k)
 
 
-def _decode_json(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_Payloads") -> dict:
+def _decode_json(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "_Payloads") -> dict:
     """Field arrays through json.loads, with errors locating the first bad message."""
     def where(i):
         return f"message {i} (log_time {int(log_times[i]) * 1e-9:.6f} s)"
@@ -415,7 +415,8 @@ def _decode_json(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_P
                 raise LogError(f"{path}: {spec.topic}: {where(i)} is not valid JSON ({exc})") from None
         raise LogError(f"{path}: {spec.topic}: messages are not valid JSON") from None
     out = {}
-    for name, length in (("t", None), *zip(spec.field_names, spec.lengths(n))):
+    for name, length, kind in (("t", None, None), *zip(spec.field_names, spec.lengths(n, m),
+                                                        (k for _, k, _, _ in spec.fields))):
         for i, m in enumerate(msgs):
             if not isinstance(m, dict):
                 raise LogError(f"{path}: {spec.topic}: {where(i)} is not a JSON object")
@@ -428,23 +429,23 @@ def _decode_json(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_P
                     raise LogError(f"{path}: {spec.topic}: field 't' of {where(i)} is not a number: {v!r}")
             elif not isinstance(v, list) or len(v) != length:
                 got = f"{len(v)} values" if isinstance(v, list) else repr(v)
-                kind = "N + 1 cables" if length == n + 1 else "N joints"
+                what = f"{kind}, N = {n}, m = {m} cables" if kind == "cables" else f"{kind}, N = {n}"
                 raise LogError(f"{path}: {spec.topic}: field {name!r} of {where(i)} has {got}, expected "
-                               f"{length} ({kind}, N = {n} from the {NECK_RECORD!r} record)")
+                               f"{length} ({what} from the {NECK_RECORD!r} record)")
             elif not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
                 raise LogError(f"{path}: {spec.topic}: field {name!r} of {where(i)} holds a non-number: {v!r}")
         out[name] = np.array([m[name] for m in msgs], dtype=float)
     return out
 
 
-def _decode(path, spec: TopicSpec, n: int, log_times: np.ndarray, data: "_Payloads"):
-    lengths = spec.lengths(n)
+def _decode(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "_Payloads"):
+    lengths = spec.lengths(n, m)
     if len(data) == 0:
         fields = {"t": np.zeros(0)} | {f: np.zeros((0, k)) for f, k in zip(spec.field_names, lengths)}
     else:
-        table = _decode_fast(spec, n, data)
+        table = _decode_fast(spec, n, m, data)
         if table is None:
-            fields = _decode_json(path, spec, n, log_times, data)
+            fields = _decode_json(path, spec, n, m, log_times, data)
         else:
             fields, col = {"t": table[:, 0].copy()}, 1
             for f, k in zip(spec.field_names, lengths):

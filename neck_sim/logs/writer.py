@@ -212,7 +212,7 @@ class LogWriter:
 
     # -- contract topics ---------------------------------------------------------------------
     def motors(self, t: float, theta, force) -> None:
-        """Encoder angles theta (N+1,) rad and commanded forces (N+1,) N at time t (s)."""
+        """Encoder angles theta (m,) rad and commanded forces (m,) N at time t (s); m = params.n_cables."""
         self._write(TOPIC_BY_NAME["motors"], t, (theta, force))
 
     def camera(self, t: float, alpha) -> None:
@@ -230,7 +230,7 @@ class LogWriter:
         self._visualize("estimate", ns, alpha_hat)
 
     def truth(self, t: float, alpha, alpha_dot, tension, elongation) -> None:
-        """Simulation truth: alpha, alpha_dot (N,), tension (N+1,) N, elongation (N+1,) m."""
+        """Simulation truth: alpha, alpha_dot (N,), tension (m,) N, elongation (m,) m."""
         ns = self._write(TOPIC_BY_NAME["truth"], t, (alpha, alpha_dot, tension, elongation))
         self._visualize("truth", ns, alpha)
 
@@ -249,7 +249,7 @@ class LogWriter:
         """(field lengths, payload pieces joined, piece offsets) of a topic, built once."""
         layout = self._layouts.get(spec.name)
         if layout is None:
-            lengths = spec.lengths(self._n)
+            lengths = spec.lengths(self._n, self.params.n_cables)
             pieces = ['{"t":']
             for i, (f, k) in enumerate(zip(spec.field_names, lengths)):
                 pieces += [("]" if i else "") + f',"{f}":['] + [","] * (k - 1)
@@ -328,7 +328,7 @@ class LogWriter:
                 self._viz[spec.name].append((int(ns[i]), first[i]))
 
     def _register(self, spec: TopicSpec) -> str:
-        self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n))
+        self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
         return spec.topic
 
     def _flush_pending(self, name: str) -> None:
@@ -342,7 +342,7 @@ class LogWriter:
         """JSON payloads of (T, F) checked values as MCAP records (numbers by orjson: shortest
         round-trip text, what json.dumps writes up to exponent style), appended to the open chunk."""
         _, pieces, starts = self._layout(spec)
-        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n))
+        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
         numbers = np.frombuffer(orjson.dumps(np.ascontiguousarray(values), option=orjson.OPT_SERIALIZE_NUMPY),
                                 np.uint8)
         out = np.empty(len(numbers) + len(ns) * (_MESSAGE_HEADER + len(pieces)), np.uint8)

@@ -1,4 +1,8 @@
-"""`neck-sim reproduce`: the paper, end to end, in simulation.
+"""The paper, end to end, in simulation: what ``neck-sim reproduce`` runs, as a Python API.
+
+    from neck_sim.experiments import ReproduceSettings, reproduce
+    rep = reproduce(ReproduceSettings(out="repro", quick=True))
+    rep.diagnosis.verdict, rep.results["table3"], rep.report_path
 
 Stages (each timed, with progress): the MJCF and its cross-validation against the analytic model;
 the §5.6 pulley indicators; the closed-loop runs (the identification trajectory under law 1 as the
@@ -27,7 +31,7 @@ import numpy as np
 from neck_sim.atomic import atomic_write_bytes, atomic_write_json
 from neck_sim.params import default_params
 
-__all__ = ["ReproduceSettings", "reproduce"]
+__all__ = ["ReproduceSettings", "Reproduction", "reproduce", "paper_runs", "run_experiments"]
 
 
 @dataclass(frozen=True)
@@ -96,17 +100,67 @@ class _IdentifiedValues:
     variable: object
 
 
-def reproduce(settings: ReproduceSettings) -> dict:
-    """Run everything; write the report; return ``results.json``'s content."""
+@dataclass(frozen=True, eq=False)
+class Reproduction:
+    """What :func:`reproduce` made: ``results`` (the content of ``results.json``), the paths of
+    the report, the results and the output directory, seconds per stage, and the typed results
+    of the stages (``runs``: label -> :class:`~controllers.closed_loop.RunResult`;
+    ``identification``: :class:`~identification.paper.IdentificationResult`; ``diagnosis``:
+    :class:`~identification.diagnosis.Diagnosis`)."""
+
+    results: dict
+    out: str
+    report_path: str
+    results_path: str
+    timings: dict
+    runs: dict
+    identification: object
+    diagnosis: object
+
+    def to_dict(self) -> dict:
+        return self.results
+
+
+def paper_runs(params, settings: ReproduceSettings, logs_dir: str) -> list:
+    """The paper's closed-loop runs as :class:`~controllers.parallel.RunSpec`: the identification
+    trajectory under law 1 (the identification run), the §7 control tests under laws 1-3 and
+    Table 3's four runs (law 2 on the identification trajectory), each logged in ``logs_dir``."""
+    from controllers import experiments as ex
+    from controllers.parallel import RunSpec
+
+    scale = settings.duration_scale
+    specs = [RunSpec("identification", params, law=1, trajectory="identification", duration_scale=scale,
+                     seed=settings.seed, log_path=os.path.join(logs_dir, "identification-law1.mcap"))]
+    specs += [RunSpec(f"law {law}", params, law=law, trajectory="control-test", duration_scale=scale,
+                      seed=settings.seed, log_path=os.path.join(logs_dir, f"control-test-law{law}.mcap"))
+              for law in (1, 2, 3)]
+    bare = params.replace(**{"geometry.r": 0.0})
+    for plant_kind, pulleys in ex.TABLE3_CASES:
+        label = f"table3 {plant_kind} {'pulleys' if pulleys else 'no-pulleys'}"
+        specs.append(RunSpec(label, params, law=2, trajectory="identification", duration_scale=scale,
+                             controller_params=None if pulleys else bare, rigid_cables=plant_kind == "rigid",
+                             seed=settings.seed,
+                             log_path=os.path.join(logs_dir, f"table3-{plant_kind}-{'pulleys' if pulleys else 'no-pulleys'}.mcap")))
+    return specs
+
+
+def run_experiments(specs, settings: ReproduceSettings) -> dict:
+    """Run the closed-loop specs (the one executor call of the workflow); label -> RunResult."""
+    from controllers.parallel import run_all
+
+    return dict(zip([s.label for s in specs], run_all(specs, workers=settings.workers, progress=settings.progress)))
+
+
+def reproduce(settings: ReproduceSettings) -> Reproduction:
+    """Run everything; write ``report.md``, ``results.json``, the logs and figures in ``settings.out``."""
     import matplotlib
 
     matplotlib.use("Agg")
     from controllers import experiments as ex
-    from controllers.parallel import RunSpec, run_all
     from controllers.plots import save_run_plots
+    from identification.diagnosis import diagnose_log
     from identification.paper import format_tables, identify_log
     from identification.plots import save_identification_figures
-    from identification.diagnosis import diagnose_log
     from identification.report import write_report
     from neck_sim import mjcf
     from neck_sim.crossval import crossval, format_table
@@ -148,21 +202,9 @@ def reproduce(settings: ReproduceSettings) -> dict:
             f"| eq (35) joint increments, mean relative change | {100 * eff.increment_rel_diff:.1f} % | 13 % |\n")
 
     # 3. closed-loop runs ----------------------------------------------------------------------
-    scale = settings.duration_scale
-    specs = [RunSpec("identification", params, law=1, trajectory="identification", duration_scale=scale,
-                     seed=settings.seed, log_path=os.path.join(logs_dir, "identification-law1.mcap"))]
-    specs += [RunSpec(f"law {law}", params, law=law, trajectory="control-test", duration_scale=scale,
-                      seed=settings.seed, log_path=os.path.join(logs_dir, f"control-test-law{law}.mcap"))
-              for law in (1, 2, 3)]
-    bare = params.replace(**{"geometry.r": 0.0})
-    for plant_kind, pulleys in ex.TABLE3_CASES:
-        label = f"table3 {plant_kind} {'pulleys' if pulleys else 'no-pulleys'}"
-        specs.append(RunSpec(label, params, law=2, trajectory="identification", duration_scale=scale,
-                             controller_params=None if pulleys else bare, rigid_cables=plant_kind == "rigid",
-                             seed=settings.seed,
-                             log_path=os.path.join(logs_dir, f"table3-{plant_kind}-{'pulleys' if pulleys else 'no-pulleys'}.mcap")))
+    specs = paper_runs(params, settings, logs_dir)
     with st.stage(f"closed-loop runs ({len(specs)})"):
-        runs = dict(zip([s.label for s in specs], run_all(specs, workers=settings.workers, progress=settings.progress)))
+        runs = run_experiments(specs, settings)
     controls = {f"law {law}": runs[f"law {law}"] for law in (1, 2, 3)}
     t3 = {case: runs[f"table3 {case[0]} {'pulleys' if case[1] else 'no-pulleys'}"] for case in ex.TABLE3_CASES}
     results["control_tests"] = {k: v.metrics.as_dict() for k, v in controls.items()}
@@ -225,11 +267,12 @@ def reproduce(settings: ReproduceSettings) -> dict:
     results["finished"] = _now()
     sections.append(_control_section(controls, t3, runs["identification"], ex))
     sections.append(_identification_section(ident, params, format_tables, sim_text))
-    sections.append(_diagnosis_section(results["diagnosis"]))
+    sections.append(_diagnosis_section(diag))
     report = _report(settings, results, sections, figures, render_note, out)
-    atomic_write_bytes(os.path.join(out, "report.md"), report.encode())
-    atomic_write_json(os.path.join(out, "results.json"), results)
-    return results
+    report_path, results_path = os.path.join(out, "report.md"), os.path.join(out, "results.json")
+    atomic_write_bytes(report_path, report.encode())
+    atomic_write_json(results_path, results)
+    return Reproduction(results, out, report_path, results_path, st.timings, runs, ident, diag)
 
 
 # ----------------------------------------------------------------------------------------------- text
@@ -272,18 +315,16 @@ def _identification_section(ident, params, format_tables, sim_text) -> str:
     return "\n".join(L)
 
 
-def _diagnosis_section(d: dict) -> str:
+def _diagnosis_section(diag) -> str:
     L = ["## 5. Diagnosis: what a rigid, frictionless model gets wrong", "",
          "`neck-sim diagnose` on the identification log, starting from rigid cables without friction, adds one "
          "physical effect at a time while a held-out test says it helps. The paper's story is dry friction, then "
          "cable elasticity, then tension stiffening.", "",
-         f"Verdict (the first and strongest finding): **{d.get('verdict')}**. Findings in the order forward "
+         f"Verdict (the first and strongest finding): **{diag.verdict}**. Findings in the order forward "
          "selection accepted them:", "",
          "| step | effect | cables (1-based) | held-out improvement | p (held out) |", "|---|---|---|---|---|"]
-    for i, f in enumerate(d.get("findings") or [], 1):
-        ev = f.get("evidence") or {}
-        L.append(f"| {i} | {f.get('effect')} | {f.get('cables')} | {_pct(ev.get('holdout_improvement'))} | "
-                 f"{_sci(ev.get('p_holdout_wilcoxon'))} |")
+    for i, f in enumerate(diag.findings, 1):
+        L.append(f"| {i} | {f.effect} | {f.cables} | {_pct(f.evidence.improvement)} | {_sci(f.evidence.p_holdout)} |")
     L += ["", "Full diagnosis: [diagnosis/report.md](diagnosis/report.md)", ""]
     return "\n".join(L)
 

@@ -1,0 +1,113 @@
+"""Fitted parameters of a diagnosis: values with uncertainties and units, and where an effect acts."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.candidates import Fit, Term
+from identification.diagnosis.candidate import CandidateScore
+from identification.diagnosis.fitting import StepContext
+from identification.diagnosis.statistics import clearly_nonzero, score
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A fitted value with its standard deviation (None when not estimated), unit and a note."""
+
+    value: float
+    sigma: float | None
+    unit: str
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        out = {"value": self.value, "sigma": self.sigma, "unit": self.unit}
+        if self.note:
+            out["note"] = self.note
+        return out
+
+
+def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
+    """1-based items (``per`` = "cable" or "joint") whose magnitude (the effect's first column) is
+    clearly non-zero; None when that column is not one per such item."""
+    cols = term.effect.columns
+    if not cols or cols[0].per != per or not fit.has(cols[0].symbol):
+        return None
+    keep = clearly_nonzero(fit.group(cols[0].symbol), fit.group_sigma(cols[0].symbol))
+    return [int(i) + 1 for i in np.nonzero(keep)[0]]
+
+
+def _per_cable_keys(term: Term) -> dict[str, tuple]:
+    """Shape key -> (Shape, 1-based cable) for the per-cable shapes of ``term`` (rest elongations)."""
+    out = {}
+    for sh in term.effect.shapes:
+        if sh.per_cable:
+            out.update({k: (sh, int(k[len(sh.name) + 1:])) for k, _ in term.shape if k.startswith(sh.name + "_")})
+    return out
+
+
+def cables_of(fit: Fit, term: Term) -> list[int] | None:
+    """1-based cables the effect concerns: per-cable magnitudes clearly non-zero
+    (:func:`neck_sim.effects.clearly_nonzero`), the cables of a per-cable shape (pretension); None
+    for effects not per cable."""
+    keys = _per_cable_keys(term)
+    if keys:
+        return sorted(cable for _, cable in keys.values())
+    return _located(fit, term, "cable")
+
+
+def joints_of(fit: Fit, term: Term) -> list[int] | None:
+    """1-based joints of an effect fitted per joint (spring errors), as :func:`cables_of`."""
+    return _located(fit, term, "joint")
+
+
+def profile_sigma(ctx: StepContext, term: Term, key: str, h: float, fit_score: float) -> float | None:
+    """Standard deviation of a searched shape parameter from the curvature of the training score:
+    S(v) ~ S* (1 + (v - v*)^2 / (n_eff sigma^2)), i.e. a unit change of chi^2."""
+    v0 = term.get(key)
+    vals = []
+    for v in (v0 - h, v0 + h):
+        shape = tuple((k, (v if k == key else x)) for k, x in term.shape)
+        try:
+            f = ctx.fit(ctx.base.fit.model.plus(Term(term.name, shape)))
+        except ValueError:
+            return None
+        vals.append(score(f.residuals(), ctx.split.train, ctx.scales))
+    curv = (vals[0] + vals[1] - 2 * fit_score) / h ** 2
+    if not curv > 0:
+        return None
+    return float(math.sqrt(2 * fit_score / (ctx.n_eff * curv)))
+
+
+def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Parameter]:
+    """Fitted parameters of the candidate's term by name; shape parameters from the grid search
+    have sigma None, except those with a ``Shape.profile_step`` (the delay, the rest elongations:
+    profile of the training score)."""
+    fit, term = cand.fit, cand.term
+    sym = {col.symbol for col in term.effect.columns}
+    out = {}
+    for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma):
+        if n.split("(")[0] in sym:
+            out[n] = Parameter(float(v), float(s), u)
+    per_cable = _per_cable_keys(term)
+    shapes = {sh.name: sh for sh in term.effect.shapes}
+    for k, v in term.shape:
+        sh, name = (per_cable[k][0], f"{per_cable[k][0].name}({per_cable[k][1]})") if k in per_cable \
+            else (shapes.get(k), k)
+        if sh is not None and sh.profile_step is not None:
+            out[name] = Parameter(float(v), profile_sigma(ctx, term, k, sh.profile_step, cand.train_score), sh.unit)
+        else:
+            out[name] = Parameter(float(v), None, sh.unit if sh else "", "shape parameter, grid search")
+    return out
+
+
+def all_parameters(fit: Fit) -> dict[str, Parameter]:
+    """Every parameter of a fitted model by name: the linear ones with their sigma, then the
+    shape parameters as ``effect.key``."""
+    out = {n: Parameter(float(v), float(s), u) for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma)}
+    for t in fit.model.terms:
+        for k, v in t.shape:
+            out[f"{t.name}.{k}"] = Parameter(float(v), None, "", "shape parameter")
+    return out

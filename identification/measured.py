@@ -1,0 +1,168 @@
+"""The measured signals of one log, prepared once for every model fit of the diagnosis.
+
+Observations and regressors on the slow grid of :func:`identification.preprocessing.prepare`
+(the two blocks of equations are described in :mod:`identification.candidates`).
+
+**Parallel filtering.** Motor-side regressors are nonlinear in the motor speed (a sign-like
+friction), so they are computed at the control rate from the encoders' speed (filtered at the motor
+cutoff only) and then pass through exactly the filter and decimation chain the observations pass
+through (:meth:`MeasuredData.to_slow`): both sides of every equation see the same filter.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from neck_sim.analytic import linkage_dynamics, transmission_matrix
+from neck_sim.params import NeckParams
+
+from identification import regressors as reg
+from identification.preprocessing import Measurements, PreprocessSettings, Prepared, decimate, lowpass, prepare
+
+__all__ = ["MeasuredData"]
+
+
+class MeasuredData:
+    """The measured signals of one log, prepared once for every model fit.
+
+    Built from measured topics only (:class:`~identification.preprocessing.Measurements`) and the
+    nominal constants ``params`` (geometry, drive, springs, masses; never friction or cables).
+    Shapes: T control-rate samples, S slow-grid samples, N joints, C = N + 1 cables.
+    """
+
+    def __init__(self, meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
+                 *, slack_threshold: float = 2.0, slack_margin_s: float = 0.1):
+        self.params = params
+        self.settings = settings or PreprocessSettings()
+        self.prep: Prepared = prepare(meas, params, self.settings, camera_rate_hz=params.sensors.camera_rate_hz)
+        prep = self.prep
+        if not prep.has_camera:
+            raise ValueError("camera: the diagnosis needs the /neck/camera joint angles (torque block eq 51 and "
+                             "elongations eq 27); this log has none")
+        self.n = params.n_joints
+        self.C = self.n + 1
+        act = params.actuation
+        self.ratio = act.R / act.r_d
+        fast = prep.fast
+        self.t_fast = fast.t
+        self.dt = float(np.median(np.diff(fast.t)))
+        self.theta_dot_fast = fast.theta_dot
+        self.theta_ddot_fast = np.gradient(fast.theta_dot, self.dt, axis=0)
+        self.force_fast = fast.force
+        self._slow_index()
+        self.t = prep.t
+        self.S = prep.t.size
+        # camera-side quantities on the slow grid
+        self.alpha = prep.alpha
+        self.Z = transmission_matrix(prep.alpha, params)
+        lk = linkage_dynamics(prep.alpha, prep.alpha_dot, params)
+        self.linkage = np.einsum("sij,sj->si", lk.M, prep.alpha_ddot) + lk.c + lk.g
+        self.x = prep.x_c
+        self.x_dot = prep.x_c_dot
+        self.theta_dot = prep.theta_dot
+        self._y_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._col_cache: dict = {}
+        y_fast, y = self.observations(0.0)
+        # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5.  Not
+        # x_c <= 0: with a pretension the measured elongation is negative on a taut cable
+        a = self.to_slow(reg.friction_basis(self.theta_dot_fast, params))
+        W = (self.Z * a[:, None, :]).reshape(-1, self.C)
+        yT = (np.einsum("sij,sj->si", self.Z, y) - self.linkage).reshape(-1)
+        try:
+            fs0 = np.clip(np.linalg.lstsq(W, yT, rcond=None)[0], 0.0, None)
+        except np.linalg.LinAlgError:
+            fs0 = np.zeros(self.C)
+        self.f_s0 = fs0
+        t_est = y - a * fs0
+        slack = t_est < slack_threshold
+        pad = int(math.ceil(slack_margin_s * prep.rate_hz))
+        if pad > 0 and slack.any():
+            kernel = np.ones(2 * pad + 1)
+            slack = np.stack([np.convolve(slack[:, i].astype(float), kernel, mode="same") > 0
+                              for i in range(self.C)], axis=1)
+        self.taut = ~slack
+        self.activity = np.linalg.norm(self.theta_dot, axis=1)
+
+    # -- the filter chain of prepare(), for any control-rate signal
+    def _slow_index(self) -> None:
+        prep, s = self.prep, self.settings
+        q = prep.decimation
+        t_grid = self.t_fast[::q]
+        tc = prep.camera[0]
+        lo, hi = max(t_grid[0], tc[0]), min(t_grid[-1], tc[-1])
+        idx = np.nonzero((t_grid >= lo) & (t_grid <= hi))[0]
+        tg = t_grid[idx]
+        keep = (tg >= tg[0] + s.trim_s) & (tg <= tg[-1] - s.trim_s)
+        if not (np.count_nonzero(keep) == prep.t.size and np.allclose(tg[keep], prep.t)):
+            raise RuntimeError("diagnosis: cannot reproduce the slow grid of identification.preprocessing.prepare")
+        self._grid = (t_grid.size, idx, keep)
+        self._common = prep.cutoffs["common"].hz
+        self._motor_cut = prep.cutoffs["motors"].hz
+
+    def to_slow(self, v: np.ndarray) -> np.ndarray:
+        """A control-rate signal (T, ...) through prepare()'s chain: motor-cutoff low-pass,
+        decimation, camera window, common-bandwidth low-pass, trimming -> (S, ...)."""
+        prep, s = self.prep, self.settings
+        n_grid, idx, keep = self._grid
+        v = lowpass(v, prep.motor_rate_hz, self._motor_cut, s.filter_order)
+        v = decimate(v, prep.decimation)[:n_grid][idx]
+        if s.common_bandwidth and self._common < 0.5 * prep.rate_hz * 0.95:
+            v = lowpass(v, prep.rate_hz, self._common, s.filter_order)
+        return v[keep]
+
+    def delayed_force(self, delay: float) -> np.ndarray:
+        """The force acting on the cables if it lags the command by ``delay`` s, (T, C) N.
+
+        A command sampled at t_k acts over [t_k, t_k + dt] (zero-order hold): on average it is
+        half a period late even without any delay, so the shift is ``delay + dt / 2``; linear
+        interpolation between control periods.
+        """
+        tq = self.t_fast - (delay + 0.5 * self.dt)
+        return np.stack([np.interp(tq, self.t_fast, self.force_fast[:, j]) for j in range(self.C)], axis=1)
+
+    def observations(self, delay: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(y_C fast (T, C), y_C slow (S, C)): f(t - delay) - (R/r_d) I_a theta_ddot, N."""
+        key = round(float(delay), 6)
+        if key not in self._y_cache:
+            ia = self.params.actuation.I_a
+            y_fast = self.delayed_force(key) - self.ratio * ia * self.theta_ddot_fast
+            self._y_cache[key] = (y_fast, self.to_slow(y_fast))
+            if len(self._y_cache) > 24:
+                self._y_cache.pop(next(iter(self._y_cache)))
+        return self._y_cache[key]
+
+    def torque_observation(self, y_slow: np.ndarray) -> np.ndarray:
+        """y_T = Z y_C - M_m alpha_ddot - c_m - g, (S, N) N m."""
+        return np.einsum("sij,sj->si", self.Z, y_slow) - self.linkage
+
+    def cached(self, key, compute):
+        """``compute()`` once per ``key`` for this log (regressor columns that do not depend on the fit)."""
+        if key not in self._col_cache:
+            self._col_cache[key] = compute()
+        return self._col_cache[key]
+
+    def motor_basis(self, effect: type, shape: dict, tension_fast: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(fast (T, C), slow (S, C)) force per unit magnitude of the motor-side ``effect`` class
+        with ``shape``: its regressor on the encoders' speed (and the tension estimate, clipped at
+        0, when it needs one), through the observations' filter chain."""
+        def compute():
+            t = None
+            if effect.uses_tension:
+                if tension_fast is None:
+                    raise ValueError(f"{effect.name}: needs a tension estimate")
+                t = np.maximum(tension_fast, 0.0)
+            fast = effect.unit(shape).regressor(self.theta_dot_fast, t)
+            return fast, self.to_slow(fast)
+
+        if effect.uses_tension:             # changes with every pass of the fit
+            return compute()
+        return self.cached((effect.name, tuple(sorted(shape.items()))), compute)
+
+    @classmethod
+    def from_log(cls, log, params: NeckParams | None = None, settings: PreprocessSettings | None = None,
+                 **kw) -> "MeasuredData":
+        """From a :class:`neck_sim.logs.Log`: its measured topics and ``neck`` record only."""
+        return cls(Measurements.from_log(log), params or log.params, settings, **kw)

@@ -1,0 +1,69 @@
+"""`neck-sim design`: compare cable routings for one neck (issue 15, item 4)."""
+
+from __future__ import annotations
+
+import os
+
+from neck_sim.cli.common import add_params_arguments, params_from_args
+
+HELP = ("compare cable routings for one neck (default: the 10-X neck): reachable workspace, stiffness, "
+        "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
+
+
+def add_arguments(parser) -> None:
+    add_params_arguments(parser)
+    parser.add_argument("-o", "--out", metavar="DIR", default="design-report",
+                        help="output directory (default ./design-report)")
+    parser.add_argument("--cables", type=int, default=4,
+                        help="cable count of the proposed strategies (even, >= 4; default 4)")
+    parser.add_argument("--samples", type=int, default=500, help="tension samples per routing (default 500)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-strategies", action="store_true",
+                        help="evaluate only the parameter file's routing")
+
+
+def _candidates(params, args):
+    from neck_sim.design import Strategy, routing_strategies
+
+    given = Strategy("given", "the routing of the parameter file" if args.params else "the paper's routing, N + 1 cables",
+                     params)
+    if args.no_strategies:
+        return [given]
+    proposed = routing_strategies(params, args.cables)
+    mine = sorted(params.routing.segment_cases(params.n_joints).tolist())
+    for k, s in enumerate(proposed):
+        if sorted(s.params.routing.segment_cases(params.n_joints).tolist()) == mine:
+            # the file holds this strategy (up to cable order): evaluate the file's own constants
+            proposed[k] = Strategy(s.name, s.description + " (the parameter file's routing)", params)
+            return proposed
+    return [given] + proposed
+
+
+def run(args) -> int:
+    from tqdm.auto import tqdm
+
+    from neck_sim.design import evaluate
+    from neck_sim.design_report import OUTPUT_FILES, write_report
+
+    if args.samples < 1:
+        raise ValueError(f"--samples: need at least 1, got {args.samples}")
+    if args.params is None and args.n_joints is None:
+        args.n_joints = 10                          # the paper's next neck: ten X-joints
+    params = params_from_args(args)
+    out = os.path.abspath(args.out)
+    if args.params and os.path.abspath(args.params) in {os.path.join(out, f) for f in OUTPUT_FILES}:
+        raise ValueError(f"-o {args.out}: would write over the parameter file {args.params}")
+    candidates = _candidates(params, args)
+    results = []
+    for strategy in tqdm(candidates, desc="routings", unit="routing"):
+        results.append(evaluate(strategy, args.samples, seed=args.seed, progress=True))
+    source = args.params or f"default {params.n_joints}-joint neck"
+    write_report(results, out, samples=args.samples, seed=args.seed, source=source)
+    for r in results:
+        w = r.summary["workspace"]
+        print(f"{r.strategy.name:>10}: feasible {100 * w['feasible_fraction']:5.1f} %, head area "
+              f"{w['head_area_cm2']:6.0f} cm^2, straight min eig K_theta "
+              + ", ".join(f"{s['min_eig_motor']:.2f}" for s in r.summary["straight"].values())
+              + " N m/rad at pretensions " + ", ".join(r.summary["straight"]) + " N")
+    print(f"report: {os.path.join(out, 'report.md')}")
+    return 0

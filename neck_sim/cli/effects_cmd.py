@@ -1,0 +1,35 @@
+"""`neck-sim effects`: the effect vocabulary (what the plant can hide and the diagnosis names)."""
+
+from __future__ import annotations
+
+HELP = "list the effect vocabulary: what each effect is, its fitted parameters (units), shapes and prerequisites"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+
+
+def describe(cls) -> tuple[str, str, str, str]:
+    """(parameters, shapes, requires, plant) of an effect class, as text."""
+    params = ", ".join(f"{c.symbol} [{c.unit}]" + ("" if c.per == "one" else f" per {c.per}") for c in cls.columns)
+    shapes = ", ".join(f"{s.name} [{s.unit}]" + (f" {s.default:g} in {list(s.grid)}" if s.grid else
+                                                 f" per cable in {list(s.bounds)}" if s.per_cable else "")
+                       for s in cls.shapes)
+    plant = cls.kind + (" (paper's model)" if cls.baseline else "")
+    return params or "-", shapes or "-", ", ".join(cls.requires) or "-", plant
+
+
+def run(args) -> int:
+    from neck_sim import effects
+
+    rows = [(cls.name, cls.description, *describe(cls)) for cls in effects.registered()]
+    head = ("effect", "description", "fitted parameters", "shapes", "requires", "acts on")
+    if args.markdown:
+        print("| " + " | ".join(head) + " |\n" + "|---" * len(head) + "|")
+        for r in rows:
+            print("| " + " | ".join(r) + " |")
+    else:
+        for name, desc, params, shapes, req, plant in rows:
+            print(f"{name:20s} {desc}\n{'':20s} fitted: {params}; shapes: {shapes}; requires: {req}; acts on: {plant}")
+    print(f"\n{effects.NONE}: the model explains the data")
+    return 0
