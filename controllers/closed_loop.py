@@ -208,27 +208,33 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {steps}")
         steps = length
         refs.append(ctrl.motor_reference(traj.sample(np.arange(steps) / rate)))
-    tables = np.stack([reference_table(r) for r in refs])
+    m = controllers[0].params.n_cables
+    if any(c.params.n_cables != m for c in controllers):
+        raise ValueError(f"lockstep: every controller needs the same number of cables ({m})")
+    compiled = all(isinstance(c, ComputedTorqueController) for c in controllers)
     for plant, ctrl, ref in zip(plants, controllers, refs):
         if reset:
             plant.reset(alpha0=ref.alpha[0])
         ctrl.reset(ref.alpha[0], plant.encoders())
-    state = ControllerState.stack([c.state for c in controllers])
+    if compiled:
+        tables = np.stack([reference_table(r) for r in refs])
+        state = ControllerState.stack([c.state for c in controllers])
+        status = state.status
 
     # The plant's seed, effects and parameters make `neck-sim replay` of a log exact.
     infos = [{**plant_run_info(plant), "trajectory": traj.name, "duration_s": traj.duration, "law": int(ctrl.law),
               "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
              for plant, ctrl, traj, info in zip(plants, controllers, trajectories, run_infos)]
     recs = [{name: np.empty((steps,) + shape) for name, shape in (
-        ("t", ()), ("theta", (n + 1,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (n + 1,)),
-        ("elongation", (n + 1,)), ("loop_gap", ()))} for _ in range(K)]
-    outs = np.zeros((K, steps, 7 * n + 4))           # the controllers write their rows (output_slices)
-    theta = np.empty((K, n + 1))
+        ("t", ()), ("theta", (m,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (m,)),
+        ("elongation", (m,)), ("loop_gap", ()))} for _ in range(K)]
+    columns = output_slices(n, m)
+    outs = np.zeros((K, steps, 4 * n + 3 * m))       # the controllers write their rows (output_slices)
+    theta = np.empty((K, m))
     cameras = [([], []) for _ in range(K)]
     errors: list = [None] * K
     writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
-    forces = output_slices(n)["forces"]
-    status = state.status
+    forces = columns["forces"]
     # per run: its index, plant, recording rows and commanded-force rows (views, bound once)
     live = [(i, plants[i], recs[i]["t"], recs[i]["theta"], recs[i]["alpha"], recs[i]["alpha_dot"], recs[i]["tension"],
              recs[i]["elongation"], recs[i]["loop_gap"], outs[i][:, forces], cameras[i]) for i in range(K)]
@@ -239,7 +245,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             for i, plant, r_t, r_theta, *_ in live:
                 r_t[k] = plant.time
                 r_theta[k] = theta[i] = plant.encoders()
-            advance(state, theta, k, tables, outs)
+            if compiled:
+                advance(state, theta, k, tables, outs)
             failed = False
             for i, plant, r_t, _, r_alpha, r_alpha_dot, r_tension, r_elong, r_gap, f, camera in live:
                 truth = plant.truth()
@@ -249,7 +256,10 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                 r_elong[k] = truth.elongation
                 r_gap[k] = truth.loop_gap
                 try:
-                    if status[i]:
+                    if not compiled:
+                        # a copy: theta's row is overwritten next period and a controller may keep it
+                        _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
+                    elif status[i]:
                         raise step_error(int(status[i]), outs[i, k, :n], controllers[i].params.geometry.alpha_max)
                     plant.step(f[k])
                 except (ValueError, RuntimeError) as exc:
@@ -258,7 +268,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                         raise err from exc
                     err.__cause__ = exc
                     errors[i] = err
-                    status[i] = status[i] or -1           # the controller stops with its plant
+                    if compiled:
+                        status[i] = status[i] or -1       # the controller stops with its plant
                     failed = True
                     continue
                 frame = plant.camera_frame()
@@ -275,7 +286,7 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                     writers[i].abort()
                 results.append(errors[i])
                 continue
-            results.append(_result(recs[i], outs[i], refs[i], cameras[i], infos[i], writers[i], n))
+            results.append(_result(recs[i], outs[i], refs[i], cameras[i], infos[i], writers[i], columns))
     except BaseException:
         for w in writers:
             if w is not None:
@@ -284,9 +295,16 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     return results
 
 
-def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, n: int) -> RunResult:
+def _store(row: np.ndarray, out, columns: dict) -> None:
+    """A controller's ControlStep into its output row (columns of :func:`output_slices`)."""
+    for name, sl in columns.items():
+        row[sl] = getattr(out, name)
+
+
+def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, columns: dict) -> RunResult:
     """The RunResult of one finished run; its log (if any) written and closed."""
-    cols = {name: out[:, sl] for name, sl in output_slices(n).items()}
+    cols = {name: out[:, sl] for name, sl in columns.items()}
+    n = cols["alpha_hat"].shape[1]
     camera_t = np.asarray(camera[0], dtype=float).reshape(-1)
     camera_alpha = np.asarray(camera[1], dtype=float).reshape(-1, n)
     if writer is not None:

@@ -129,10 +129,11 @@ _friction, _tension_hat = arctan_friction.jit, estimated_tension.jit
 _stiff, _euler = _stiffness.jit, _euler_elongation.jit
 
 
-def output_slices(n: int) -> dict[str, slice]:
-    """Columns of one output row for N joints."""
-    sizes = (("alpha_hat", n), ("elongation", n + 1), ("gamma", n), ("w", n), ("forces", n + 1),
-             ("requested", n + 1), ("saturated", n + 1))
+def output_slices(n: int, m: int | None = None) -> dict[str, slice]:
+    """Columns of one output row for N joints and m cables (default N + 1, the compiled layout)."""
+    m = n + 1 if m is None else m
+    sizes = (("alpha_hat", n), ("elongation", m), ("gamma", n), ("w", n), ("forces", m),
+             ("requested", m), ("saturated", m))
     out, start = {}, 0
     for name, size in sizes:
         out[name] = slice(start, start + size)
