@@ -14,8 +14,11 @@ forms, and the noise-only control) x seeds x magnitude levels (fractions of the 
   log measured in the same run (the ratio is the number to compare between machines);
 * the paper's story on the paper's own experiment (identification trajectory, law 1, closed loop).
 
+The blind logs are simulated and diagnosed on a campaign executor (:mod:`controllers.campaign`):
+local worker processes (``--workers``), or a Dask cluster (``--cluster tcp://HOST:PORT``).
+
 Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5,1] [--workers 2]
-[--negatives 6] [--json PATH] [--skip-timing]``.
+[--cluster tcp://HOST:PORT] [--negatives 6] [--json PATH] [--skip-timing]``.
 """
 
 from __future__ import annotations
@@ -26,13 +29,18 @@ import os
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 
 def _one(job):
-    name, seed, level, directory = job
+    """One blind log, simulated and diagnosed on a campaign worker (in its own scratch directory)."""
+    with tempfile.TemporaryDirectory(prefix="neck-sim-blind-") as directory:
+        return _one_in(job, directory)
+
+
+def _one_in(job, directory):
+    name, seed, level = job
     from identification.blind import MAGNITUDES, make_case
     from identification.diagnosis import DiagnosisSettings, diagnose_log
 
@@ -242,7 +250,8 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", default="0.25,0.5,1")
     ap.add_argument("--negatives", type=int, default=6, help="noise-only controls (seeds 1..K)")
     ap.add_argument("--cases", default=None, help="comma-separated blind cases (default: all)")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core)")
+    ap.add_argument("--cluster", default=None, metavar="tcp://HOST:PORT", help="run on this Dask scheduler")
     ap.add_argument("--json", default=None)
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--from-json", default=None, help="print the tables of a previous --json run (no simulation)")
@@ -252,8 +261,7 @@ def main(argv=None) -> int:
         print(timing())
         print(story())
         return 0
-    from tqdm.auto import tqdm
-
+    from controllers.campaign import ExecutorSpec, run_campaign
     from identification.blind import CASES
 
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -266,14 +274,14 @@ def main(argv=None) -> int:
         seeds = sorted({r["seed"] for r in results if r["case"] != "none"})
         report(results, levels, seeds, "from " + args.from_json)
         return 0
-    with tempfile.TemporaryDirectory() as d:
-        jobs = [(c, s, L, d) for c in cases for s in seeds for L in levels]
-        jobs += [("none", s, 1.0, d) for s in range(1, args.negatives + 1)]
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(args.workers) as ex:
-            results = list(tqdm(ex.map(_one, jobs), total=len(jobs), desc="blind diagnoses", unit="log"))
-        wall = time.perf_counter() - t0
-    report(results, levels, seeds, f"{wall:.0f} s with {args.workers} workers")
+    where = ExecutorSpec(workers=args.workers, cluster=args.cluster)
+    jobs = [(c, s, L) for c in cases for s in seeds for L in levels]
+    jobs += [("none", s, 1.0) for s in range(1, args.negatives + 1)]
+    t0 = time.perf_counter()
+    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g}" for c, s, L in jobs],
+                           desc="blind diagnoses")
+    wall = time.perf_counter() - t0
+    report(results, levels, seeds, f"{wall:.0f} s on {where.describe()}")
     if not args.skip_timing:
         print(timing())
         print(story())

@@ -1,24 +1,26 @@
-"""Run independent closed-loop experiments in parallel worker processes.
+"""Run independent closed-loop experiments on a campaign executor (:mod:`controllers.campaign`).
 
 Each run is described by a picklable :class:`RunSpec` (plant, controller, trajectory by name) and
 built inside its worker: MuJoCo models, callbacks and controllers never cross process boundaries.
-Results come back as :class:`~controllers.closed_loop.RunResult` in the order of the specs.
+Results come back as :class:`~controllers.closed_loop.RunResult` in the order of the specs; a run's
+MCAP log is written by the worker into a scratch directory and sent back, so a Dask worker on
+another machine needs no shared file system.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
-import multiprocessing
-import os
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
+from controllers.campaign import ExecutorSpec, map_jobs, run_campaign, run_in_scratch, write_shipped
 from controllers.closed_loop import RunResult, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import make_trajectory
 from neck_sim.params import NeckParams
 
-__all__ = ["RunSpec", "run_one", "run_all", "default_workers"]
+__all__ = ["RunSpec", "run_one", "run_all"]
 
 
 @dataclass(frozen=True)
@@ -57,54 +59,41 @@ def run_one(spec: RunSpec, progress: bool = False) -> RunResult:
     return run_closed_loop(plant, controller, trajectory, log_path=spec.log_path, progress=progress, run_info=info)
 
 
-def default_workers() -> int:
-    """One worker per available core (at least 1)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+def run_all(specs: Sequence[RunSpec], executor: ExecutorSpec | cf.Executor | None = ExecutorSpec(), *,
+            progress: bool = True, desc: str = "closed-loop runs") -> list[RunResult]:
+    """Run every spec; results in spec order.
 
-
-def run_all(specs: Sequence[RunSpec], *, workers: int | None = None, progress: bool = True,
-            desc: str = "closed-loop runs") -> list[RunResult]:
-    """Run every spec, ``workers`` at a time (default: one per core); results in spec order.
-
-    With one worker (or one spec) everything runs in this process, with per-step progress.
-    A failing run raises its error, naming the run's label.
+    ``executor``: where (an :class:`~controllers.campaign.ExecutorSpec`, default one local process
+    per core; an executor already open; or None: serially here, with per-step progress).  A
+    failing run raises ``RuntimeError`` naming the run's label.
     """
     labels = [s.label for s in specs]
     if len(set(labels)) != len(labels):
         raise ValueError(f"run labels must be unique, got {labels}")
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise ValueError(f"workers: must be >= 1, got {workers}")
-    if workers == 1 or len(specs) <= 1:
-        return [_run_labelled(s, progress) for s in specs]
-
-    from tqdm.auto import tqdm
-
-    # fork keeps start-up cheap; the workers start before any MuJoCo model exists in them.
-    ctx = multiprocessing.get_context("fork")
-    results: list[RunResult | None] = [None] * len(specs)
-    with cf.ProcessPoolExecutor(max_workers=min(workers, len(specs)), mp_context=ctx) as pool:
-        futures = {pool.submit(run_one, s): i for i, s in enumerate(specs)}
-        with tqdm(total=len(specs), desc=desc, unit="run", disable=not progress) as bar:
-            for fut in cf.as_completed(futures):
-                i = futures[fut]
-                try:
-                    results[i] = fut.result()
-                except Exception as exc:
-                    for other in futures:
-                        other.cancel()
-                    raise RuntimeError(f"run {specs[i].label!r} failed: {exc}") from exc
-                bar.set_postfix_str(specs[i].label)
-                bar.update()
-    return results
+    if executor is None or (isinstance(executor, ExecutorSpec) and executor.cluster is None
+                            and (executor.serial or len(specs) <= 1)):
+        return map_jobs(_run_here, [(s, progress) for s in specs], None, labels=labels, progress=False)
+    shipped = run_campaign(_run_shipped, specs, executor, labels=labels, progress=progress, desc=desc)
+    out = []
+    for spec, (result, log) in zip(specs, shipped):
+        if spec.log_path is not None:
+            write_shipped(spec.log_path, log)
+            result = dataclasses.replace(result, log_path=spec.log_path)
+        out.append(result)
+    return out
 
 
-def _run_labelled(spec: RunSpec, progress: bool) -> RunResult:
-    try:
-        return run_one(spec, progress)
-    except Exception as exc:
-        raise RuntimeError(f"run {spec.label!r} failed: {exc}") from exc
+def _run_here(job) -> RunResult:
+    spec, progress = job
+    return run_one(spec, progress)
 
+
+def _run_shipped(spec: RunSpec) -> tuple[RunResult, bytes | None]:
+    """On a worker: the run, and its log's bytes (None without a log)."""
+    if spec.log_path is None:
+        return run_one(spec), None
+    return run_in_scratch(_run_logged, "run.mcap", spec)
+
+
+def _run_logged(path: str, spec: RunSpec) -> RunResult:
+    return run_one(dataclasses.replace(spec, log_path=path))

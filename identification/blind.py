@@ -40,7 +40,7 @@ from neck_sim.effects import NONE, Effects
 from neck_sim.params import NeckParams, default_params
 
 __all__ = ["excitation_trajectory", "ServoGains", "run_log", "BlindCase", "hidden_effect", "blind_forms", "CASES",
-           "MAGNITUDES", "make_case"]
+           "MAGNITUDES", "make_case", "make_cases"]
 
 
 def excitation_trajectory(params: NeckParams, sequences: int = 3, move_time: float = 0.9, hold_time: float = 0.25,
@@ -218,3 +218,27 @@ def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None
     run_log(path, case.params, case.effects, trajectory=trajectory, seed=seed, progress=progress,
             run_info={"hidden": case.description}, write_truth=write_truth)
     return case, os.fspath(path)
+
+
+def make_cases(jobs, directory, executor=None, *, progress: bool = True, write_truth: bool = False) -> list:
+    """[(case, log path)] of :func:`make_case` for each job ``(name, seed, level)``, generated on a
+    campaign executor (:func:`controllers.campaign.run_campaign`: an ``ExecutorSpec``, an open
+    executor, or None for serially here); logs land in ``directory`` as ``NAME_SEED_LEVEL.mcap``."""
+    from controllers.campaign import run_campaign, write_shipped
+
+    jobs = [(str(name), int(seed), float(level), bool(write_truth)) for name, seed, level in jobs]
+    names = [f"{name.replace(':', '_')}_{seed}_{level:g}.mcap" for name, seed, level, _ in jobs]
+    made = run_campaign(_make_case_shipped, jobs, executor, labels=names, progress=progress, desc="blind logs")
+    return [(case, write_shipped(os.path.join(directory, name), data)) for name, (case, data) in zip(names, made)]
+
+
+def _make_case_shipped(job):
+    """On a worker: (case, log bytes) of one :func:`make_cases` job."""
+    from controllers.campaign import run_in_scratch
+
+    name, seed, level, write_truth = job
+    return run_in_scratch(_make_case_at, "case.mcap", name, seed, level, write_truth)
+
+
+def _make_case_at(path, name, seed, level, write_truth) -> BlindCase:
+    return make_case(name, seed, path, level=level, write_truth=write_truth)[0]

@@ -290,6 +290,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     train = np.asarray(train, bool)
     state = state or initial_state(data)
     delay = float(sum(t.effect.fit_delay(dict(t.shape)) for t in model.terms))
+    data = data.camera_shifted(sum(t.effect.fit_camera_shift(dict(t.shape)) for t in model.terms))
     y_fast, y_slow = data.observations(delay)
     yT = data.torque_observation(y_slow)
     elastic = model.elastic

@@ -11,11 +11,13 @@ through (:meth:`MeasuredData.to_slow`): both sides of every equation see the sam
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 
 import numpy as np
 
-from neck_sim.analytic import linkage_dynamics, transmission_matrix
+from neck_sim.analytic import cable_lengths, linkage_dynamics, transmission_matrix
 from neck_sim.params import NeckParams
 
 from identification import regressors as reg
@@ -64,6 +66,8 @@ class MeasuredData:
         self.theta_dot = prep.theta_dot
         self._y_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._col_cache: dict = {}
+        self._shifted: dict[float, "MeasuredData"] = {}
+        self.camera_shift = 0.0
         y_fast, y = self.observations(0.0)
         # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5.  Not
         # x_c <= 0: with a pretension the measured elongation is negative on a taut cable
@@ -136,6 +140,48 @@ class MeasuredData:
     def torque_observation(self, y_slow: np.ndarray) -> np.ndarray:
         """y_T = Z y_C - M_m alpha_ddot - c_m - g, (S, N) N m."""
         return np.einsum("sij,sj->si", self.Z, y_slow) - self.linkage
+
+    def camera_shifted(self, shift: float) -> "MeasuredData":
+        """These data with the camera read ``shift`` s later (a camera that lags the encoders by
+        ``shift``: the frame stamped t + shift shows the neck at t).
+
+        Every camera-side slow-grid quantity is re-evaluated at t + shift: alpha and its
+        derivatives by linear interpolation of the filtered signals (they are band-limited at the
+        common cutoff, a few Hz, so a shift of a fraction of a frame interpolates exactly enough;
+        the last samples repeat the end value), then Z, the linkage torque (eq 30) and the
+        elongations of eq (27).  The motor side, the slow grid, the slack mask and the
+        observations are unchanged.  Cached per shift (rounded to 0.1 ms).
+        """
+        key = round(float(shift), 4)
+        if key == 0.0:
+            return self
+        if key not in self._shifted:
+            if len(self._shifted) > 8:
+                self._shifted.pop(next(iter(self._shifted)))
+            self._shifted[key] = self._shift_camera(key)
+        return self._shifted[key]
+
+    def _shift_camera(self, shift: float) -> "MeasuredData":
+        prep, p = self.prep, self.params
+        tq = self.t + shift
+
+        def at(v):
+            return np.stack([np.interp(tq, self.t, v[:, i]) for i in range(v.shape[1])], axis=1)
+
+        alpha, alpha_dot, alpha_ddot = at(prep.alpha), at(prep.alpha_dot), at(prep.alpha_ddot)
+        Z = transmission_matrix(alpha, p, allow_outside_range=True)
+        # eq (27): x_c = l_c(alpha) - l_c0 + (r_d/R) theta; d l_c / dt = -Z^T alpha_dot
+        x = self.x + cable_lengths(alpha, p, allow_outside_range=True) - cable_lengths(prep.alpha, p,
+                                                                                         allow_outside_range=True)
+        x_dot = self.x_dot - np.einsum("snc,sn->sc", Z, alpha_dot) + np.einsum("snc,sn->sc", self.Z, prep.alpha_dot)
+        out = copy.copy(self)
+        out.prep = dataclasses.replace(prep, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot, x_c=x,
+                                       x_c_dot=x_dot)
+        lk = linkage_dynamics(alpha, alpha_dot, p)
+        out.alpha, out.Z, out.x, out.x_dot = alpha, Z, x, x_dot
+        out.linkage = np.einsum("sij,sj->si", lk.M, alpha_ddot) + lk.c + lk.g
+        out._col_cache, out._shifted, out.camera_shift = {}, {}, shift
+        return out
 
     def cached(self, key, compute):
         """``compute()`` once per ``key`` for this log (regressor columns that do not depend on the fit)."""

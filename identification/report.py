@@ -10,6 +10,8 @@
   variables an effect shows in: a friction against speed, a stiffness error against tension, a
   payload or spring error against the angle, a delay or pretension against time);
 * ``candidates.png`` -- the cross-validated improvement of every candidate, per step;
+* ``unexplained.png`` -- when structure is left (verdict ``unexplained``): the strongest leftover
+  residual against the feature it follows and against time;
 * ``alpha_hat.png``, ``resimulation.png`` -- alpha_hat and the open-loop re-simulation against
   the camera and the encoders, baseline vs final;
 * ``model.json`` -- the final model (terms, plant parameters, effects; ``--model`` reads it).
@@ -83,6 +85,9 @@ def format_summary(diag) -> str:
                      f"{_vec(a.holdout.theta_rms_rad)} rad; alpha mean |error| "
                      f"{_fmt(b.holdout.alpha_mean_abs_deg, digits=3)} -> "
                      f"{_fmt(a.holdout.alpha_mean_abs_deg, digits=3)} deg ({b.status} / {a.status})")
+    if diag.leftover is not None and diag.leftover.significant:
+        lines.append("  unexplained structure left (strongest first):")
+        lines += [f"      {x.describe()}" for x in diag.leftover.found[:3]]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
 
@@ -262,6 +267,50 @@ def _alpha_row(label: str, where: str, b, a) -> str:
             f"{a.mean_abs_deg / b.mean_abs_deg:.2f} |")
 
 
+def _unexplained_figure(diag, path: str) -> str | None:
+    import matplotlib.pyplot as plt
+
+    lo = diag.leftover
+    if lo is None or lo.plot is None:
+        return None
+    top, t, res, feat = lo.plot
+    ok = np.isfinite(res)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4))
+    a1.plot(feat[ok], res[ok], ".", ms=2, alpha=0.5)
+    order = np.argsort(feat[ok])
+    bins = np.array_split(order, 20)
+    a1.plot([feat[ok][b].mean() for b in bins if b.size], [res[ok][b].mean() for b in bins if b.size], "r-", lw=2,
+            label="binned mean")
+    a1.set_xlabel(top.feature)
+    a1.set_ylabel(f"{top.channel} residual ({top.unit})")
+    a1.legend(fontsize=7)
+    a2.plot(t, res, lw=0.7)
+    a2.set_xlabel("time (s)")
+    a2.set_ylabel(f"{top.channel} residual ({top.unit})")
+    fig.suptitle(f"unexplained: {top.describe()}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _unexplained_lines(diag) -> list[str]:
+    lo = diag.leftover
+    if lo is None:
+        return []
+    if not lo.significant:
+        return ["No structure beyond noise is left in the final model's cross-validated residuals "
+                f"({lo.n_tests} tests against state features and whiteness, |z| < {lo.z_threshold:.1f}).", ""]
+    L = ["## Unexplained: structure left in the residuals", "",
+         "The final model leaves structure beyond noise that no effect of the vocabulary removes"
+         + (" (the findings above are therefore no clean explanation)" if diag.findings else "") + ":", "",
+         "| channel | follows | rho | z (threshold " + f"{lo.z_threshold:.1f}) | structure / rest | residual RMS |",
+         "|---|---|---|---|---|---|"]
+    for x in lo.found[:10]:
+        L.append(f"| {x.channel} | {x.feature} | {x.rho:+.2f} | {x.z:.1f} | {x.size:.2f} | {_fmt(x.rms, x.unit, 3)} |")
+    return L + [""]
+
+
 def _markdown(diag, figures: dict) -> str:
     L = [f"# Diagnosis of `{os.path.basename(diag.source) or 'data'}`", "",
          f"Baseline model: **{diag.baseline.description}**.", "",
@@ -277,6 +326,7 @@ def _markdown(diag, figures: dict) -> str:
     else:
         L += ["No candidate effect improves the held-out prediction significantly: the model explains the data "
               "to within its noise.", ""]
+    L += _unexplained_lines(diag)
     for f in diag.findings:
         L += [f"### Gain of step {f.step} ({f.effect}), cross-validated residual RMS", "",
               "| residual | channel | before | after | after/before |", "|---|---|---|---|---|"]
@@ -306,7 +356,8 @@ def _markdown(diag, figures: dict) -> str:
         L += ["", f"Re-simulation status: baseline {b.resimulation.status}; final {a.resimulation.status}."]
     L.append("")
     for key, title in (("torque", "Joint-torque residuals"), ("cable", "Cable residuals"),
-                       ("candidates", "Candidates"), ("alpha", "alpha_hat against the camera"),
+                       ("candidates", "Candidates"), ("unexplained", "Unexplained structure"),
+                       ("alpha", "alpha_hat against the camera"),
                        ("resim", "Re-simulation")):
         if figures.get(key):
             L += [f"### {title}", "", f"![{title}]({os.path.basename(figures[key])})", ""]
@@ -350,6 +401,7 @@ def write_report(diag, directory) -> list[str]:
     figs = {"torque": _residual_figure(diag, os.path.join(directory, "residuals_torque.png"), "torque"),
             "cable": _residual_figure(diag, os.path.join(directory, "residuals_cable.png"), "cable"),
             "candidates": _candidates_figure(diag, os.path.join(directory, "candidates.png")),
+            "unexplained": _unexplained_figure(diag, os.path.join(directory, "unexplained.png")),
             "alpha": _alpha_figure(diag, os.path.join(directory, "alpha_hat.png")),
             "resim": _resim_figure(diag, os.path.join(directory, "resimulation.png"))}
     md = os.path.join(directory, "report.md")

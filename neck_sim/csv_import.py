@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from neck_sim.logs import LogWriter
+from neck_sim.logs.contract import TOPIC_BY_NAME, LogError, check_plausible
 from neck_sim.params import NeckParams, default_params
 
 __all__ = ["csv_columns", "read_csv_table", "import_csv", "ImportResult"]
@@ -60,8 +61,15 @@ def read_csv_table(path, columns: list[str]) -> tuple[dict[str, np.ndarray], lis
     except OSError as exc:
         raise ValueError(f"{path}: cannot read CSV file ({exc.strerror})") from None
     with fh:
-        rows = [(i + 1, row) for i, row in enumerate(csv.reader(fh))
-                if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+        reader = csv.reader(fh)
+        try:
+            rows = [(i + 1, row) for i, row in enumerate(reader)
+                    if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} near line "
+                             f"{reader.line_num + 1}); save the CSV as UTF-8") from None
+        except csv.Error as exc:
+            raise ValueError(f"{path}:{reader.line_num}: not a readable CSV file ({exc})") from None
     if not rows:
         raise ValueError(f"{path}: empty CSV file (expected a header row: {', '.join(columns)})")
     header_line, header = rows[0]
@@ -110,10 +118,13 @@ class ImportResult:
 
 
 def import_csv(motors, output, *, camera=None, reference=None, estimate=None, params: NeckParams | None = None,
-               shift_time: bool = False, run_info: dict | None = None) -> ImportResult:
+               shift_time: bool = False, run_info: dict | None = None,
+               accept_out_of_range_forces: bool = False) -> ImportResult:
     """Write a contract log at ``output`` from prototype CSV files (columns: module docstring).
 
-    ``params`` are the nominal constants for the ``neck`` record (default: 3-joint defaults).
+    ``params`` are the nominal constants for the ``neck`` record (default: 3-joint defaults).  The
+    data are checked against them before anything is written (sample rates, joint range, forces
+    in [0, f_max]: :func:`neck_sim.logs.contract.check_plausible`); ValueError names the file.
     """
     params = default_params(3) if params is None else params
     n = params.n_joints
@@ -128,6 +139,11 @@ def import_csv(motors, output, *, camera=None, reference=None, estimate=None, pa
         kind = min(tables, key=lambda k: tables[k]["t"][0])
         raise ValueError(f"{files[kind]}: negative time t = {float(t0)!r} s (times are s since the start of the run; "
                          "use --shift-time to start at the earliest sample)")
+    t_last = max(float(tab["t"][-1]) for tab in tables.values()) - shift
+    if t_last >= 9.2e9:
+        raise ValueError(f"{files[max(tables, key=lambda k: tables[k]['t'][-1])]}: time t = {t_last:.6g} s is beyond "
+                         "MCAP's nanosecond timestamps (t < 9.2e9 s); times are seconds since the start of the run"
+                         + ("" if shift_time else " (--shift-time subtracts the earliest time)"))
     events = []
     for kind, tab in tables.items():
         cols = csv_columns(kind, n)[1:]
@@ -136,6 +152,12 @@ def import_csv(motors, output, *, camera=None, reference=None, estimate=None, pa
         else:
             arrays = (np.stack([tab[c] for c in cols], 1),)
         t = tab["t"] - shift
+        spec = TOPIC_BY_NAME[kind]
+        try:
+            check_plausible(spec, {"t": t, **dict(zip(spec.field_names, arrays))}, params,
+                            accept_out_of_range_forces=accept_out_of_range_forces)
+        except LogError as exc:
+            raise LogError(f"{files[kind]}: {exc}") from None
         events += [(t[i], kind, i, arrays) for i in range(len(t))]
     events.sort(key=lambda e: (e[0], e[1]))
     info = {"source": "csv import", **{f"{k}_csv": os.path.abspath(v) for k, v in files.items() if v is not None},

@@ -53,7 +53,8 @@ from neck_sim.params import (SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RI
                              NeckParams)
 
 __all__ = ["DEFAULT_TIMESTEP", "Layout", "build_xml", "build_model", "write_xml", "ModelIndex",
-           "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path", "helper_joints"]
+           "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path", "helper_joints",
+           "integrator_for", "IMPLICITFAST_DAMPING_LIMIT"]
 
 DEFAULT_TIMESTEP = 5e-4
 """Physics timestep (s): the largest that keeps the issue-3 dynamics check true (see plant)."""
@@ -301,6 +302,31 @@ def _capsule(parent: ET.Element, name: str, p0, p1, rgba: str, radius: float = 0
                   fromto=_vec(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0), rgba=rgba, group="1")
 
 
+#: Largest c_a dt / m_bar (cable damping N s/m x timestep s / lightest bar kg) at which MuJoCo's
+#: ``implicitfast`` integrator keeps the tension-only cables stable.  Measured (issue 13): with 20 g
+#: bars at dt = 0.5 ms, 100 N s/m (2.5) runs the control tests and 300 N s/m (7.5) diverges within
+#: 20 ms; 1.5 (60 N s/m) keeps a margin.  The default 50 N s/m (1.25) stays on implicitfast.
+IMPLICITFAST_DAMPING_LIMIT = 1.5
+
+
+def integrator_for(params: NeckParams, timestep: float = DEFAULT_TIMESTEP, rigid_cables: bool = False) -> str:
+    """MuJoCo integrator for the plant's cables: ``implicitfast`` while the cable damping is light
+    for the bars at this timestep (fastest), else ``discrete``.
+
+    Why: ``implicitfast`` treats the eq (54) damping implicitly through the actuator's velocity
+    derivative, but MuJoCo solves the loop-closure constraints in the plain mass metric first; when
+    dt c_a is large against the bars' mass the two disagree and the loops blow up (the paper's
+    c_a = 3000 N s/m diverged within 2 ms).  ``discrete`` (MuJoCo >= 3.13) solves constraints and
+    implicit damping in one metric, M + dt D, and is stable and accurate up to c_a = 3000 N s/m at
+    0.5 ms, at about twice the cost per step.
+    """
+    if rigid_cables:
+        return "implicitfast"
+    bars = min(params.inertia.bar_mass, params.inertia.diagonal_mass)
+    stiff = bars <= 0 or max(params.cables.c_a) * timestep / bars > IMPLICITFAST_DAMPING_LIMIT
+    return "discrete" if stiff else "implicitfast"
+
+
 def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_cables: bool = False,
               rest_lengths=None) -> str:
     """The MJCF text of the neck described by ``params`` (see the module docstring).
@@ -334,7 +360,8 @@ def build_xml(params: NeckParams, *, timestep: float = DEFAULT_TIMESTEP, rigid_c
 
     root = ET.Element("mujoco", model=f"neck{n}x")
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
-    opt = ET.SubElement(root, "option", timestep=_fmt(timestep), integrator="implicitfast",
+    opt = ET.SubElement(root, "option", timestep=_fmt(timestep),
+                        integrator=integrator_for(params, timestep, rigid_cables),
                         gravity=_vec(0.0, -inert.gravity, 0.0), solver="Newton", iterations="50",
                         tolerance="1e-10")
     ET.SubElement(opt, "flag", contact="disable")
@@ -545,6 +572,9 @@ class ModelIndex(NamedTuple):
     rigid_equality: np.ndarray    # (m,) equality ids of c{j}_rigid, or empty
     helper_joint: np.ndarray  # (H,) 0-based X-joint of each helper
     helper_tendon: np.ndarray     # (H,) tendon ids of the helpers' fixed-tendon locks
+    spring_tendon: np.ndarray     # (N, 2) tendon ids of j{i}_spring_left, j{i}_spring_right
+    spring_stiffness: np.ndarray  # (N, 2) their stiffness as compiled (N/m), before any effect edits it
+    spring_length: np.ndarray     # (N, 2) their rest length as compiled (m)
 
     @property
     def n_cables(self) -> int:
@@ -592,12 +622,14 @@ def model_index(model) -> ModelIndex:
     rigid = rigid if np.all(rigid >= 0) else np.zeros(0, dtype=int)
     S = mujoco.mjtObj.mjOBJ_SITE
     loops = np.stack([ids(S, [f"j{i}_C_top" for i in jn]), ids(S, [f"j{i}_C_bc" for i in jn])], axis=1)
+    springs = ids(T, [f"j{i}_spring_{side}" for i in jn for side in ("left", "right")]).reshape(n, 2)
     return ModelIndex(n, q[jA], q[jB], q[jD], q[jH], q[jM], v[jA], v[jB], v[jD], v[jH], v[jM],
                       ids(T, [f"c{j}" for j in cn]),
                       ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"drive{j}" for j in cn]),
                       ids(mujoco.mjtObj.mjOBJ_ACTUATOR, [f"tension{j}" for j in cn]),
                       loops, bars, others, rigid, np.array([i - 1 for i, _ in helpers], dtype=int),
-                      ids(T, [f"{h}_lock" for h in hnames]))
+                      ids(T, [f"{h}_lock" for h in hnames]), springs,
+                      model.tendon_stiffness[springs].copy(), model.tendon_lengthspring[springs, 0].copy())
 
 
 class PoseQpos(NamedTuple):

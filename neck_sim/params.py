@@ -333,7 +333,7 @@ class CableRoute:
             if p not in PASS_ROUTINGS:
                 raise ParameterError(f"{where}.passes[{i}]: joint {i + 1} must be 'strut' or 'side', got {p!r}")
         e = self.ends_at
-        if isinstance(e, bool) or not isinstance(e, (int, np.integer, float)) or int(e) != e or e < 1:
+        if isinstance(e, bool) or not isinstance(e, (int, np.integer, float)) or not math.isfinite(e) or int(e) != e or e < 1:
             raise ParameterError(f"{where}.ends_at: must be a joint number >= 1, got {e!r}")
         e = int(e)
         if len(passes) >= e:
@@ -354,7 +354,7 @@ class CableRoute:
             raise ParameterError(f"{where}.extra_turns: expected {len(passes)} values (one per passed joint), "
                                  f"got {len(turns)}")
         for i, (t, p) in enumerate(zip(turns, passes)):
-            if isinstance(t, bool) or not isinstance(t, (int, np.integer, float)) or int(t) != t:
+            if isinstance(t, bool) or not isinstance(t, (int, np.integer, float)) or not math.isfinite(t) or int(t) != t:
                 raise ParameterError(f"{where}.extra_turns[{i}]: must be an integer, got {t!r}")
             if p == "side" and t != 1:
                 raise ParameterError(
@@ -367,7 +367,7 @@ class CableRoute:
                     f"turns there are not modelled (they only add a constant length), got {t!r}")
         row = self.row
         if row is not None:
-            if isinstance(row, bool) or not isinstance(row, (int, np.integer, float)) or int(row) != row:
+            if isinstance(row, bool) or not isinstance(row, (int, np.integer, float)) or not math.isfinite(row) or int(row) != row:
                 raise ParameterError(f"{where}.row: must be an integer, got {row!r}")
             if row == 0:
                 raise ParameterError(f"{where}.row: row 0 is the plane of the bars, which has no pulleys; "

@@ -14,9 +14,11 @@ Forces (sign convention of :mod:`neck_sim.analytic.cables`)
       applies the commanded force f:  I_a (R/r_d)^2 s_ddot = f - t - f_friction.
 
     Both biases are written in MuJoCo's *affine* form b0 + b2 * velocity with b2 the exact
-    velocity derivative, so the ``implicitfast`` integrator treats cable damping and friction
-    implicitly (a user-type bias would be explicit: with c_a = 50 N s/m on bars of 1e-5 kg m^2
-    that is unstable at dt = 5e-4 s, and hopeless with the paper's c_a = 3000).
+    velocity derivative, so the implicit integrator treats cable damping and friction implicitly
+    (a user-type bias would be explicit: with c_a = 50 N s/m on bars of 1e-5 kg m^2 that is
+    unstable at dt = 5e-4 s).  Light damping runs on ``implicitfast``; stiff cables (up to the
+    paper's c_a = 3000 N s/m) on ``discrete``, which solves the loop constraints in the same
+    implicit metric (:func:`neck_sim.mjcf.integrator_for`).
 
     The per-step state this writes into the model (``actuator_biasprm``) is explained once, at the
     top of ``neck_sim/native/plant_callback.c``.
@@ -302,7 +304,7 @@ class Plant:
         self._out_alpha = np.ctypeslib.as_array(self._c.alpha)[:n]
         self._out_alpha_dot = np.ctypeslib.as_array(self._c.alpha_dot)[:n]
         self._delay = self.effects.command_delay()
-        self._camera_delay = self.effects.camera_delay()      # a frame stamped t shows the neck at t - delay
+        self._camera_delay = self.effects.camera_lag()    # a frame stamped t shows the neck at t - delay
         self._n1 = m
         if not np.array_equal(ix.drive_actuator, np.arange(m)):
             raise RuntimeError("model: the drive actuators must be the first m actuators (one per cable)")

@@ -50,9 +50,10 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
             notes.append("run record has no plant_params: using the nominal constants of the neck record")
         else:
             params = from_dict(recorded)
-    if params.n_joints != log.params.n_joints:
-        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints but "
-                             f"the log {log.path} was recorded with N = {log.params.n_joints}")
+    if (params.n_joints, params.n_cables) != (log.params.n_joints, log.params.n_cables):
+        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints and "
+                             f"{params.n_cables} cables but the log {log.path} was recorded with N = "
+                             f"{log.params.n_joints} and {log.params.n_cables} cables")
     if changes:
         params = params.replace(**changes)
     if effects is None:
@@ -132,16 +133,19 @@ class ReplayResult:
 
 def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, effects: Effects | None = None,
            seed: int | None = None, changes: dict | None = None, output=None, progress: bool = False,
-           backend: str | None = None) -> ReplayResult:
+           backend: str | None = None, accept_out_of_range_forces: bool = False) -> ReplayResult:
     """Re-run the logged commanded forces open loop on the (possibly changed) plant.
 
     ``output``: path of an MCAP of the replay (motors with the replayed encoders and the logged
     forces, camera, truth).  Raises ValueError when the log cannot be replayed (no motors, motor
-    samples not at the plant's control period, no initial pose).
+    samples not at the plant's control period, no initial pose).  A log path is read with
+    :func:`read_log` (forces outside [0, f_max] refused unless ``accept_out_of_range_forces``);
+    forces the plant clips are counted in ``notes``: never clipped silently.
     """
     if not isinstance(log, Log):
-        log = read_log(log, topics=("motors", "truth", "camera"))
+        log = read_log(log, topics=("motors", "truth", "camera"), accept_out_of_range_forces=accept_out_of_range_forces)
     plant, notes = plant_from_log(log, params=params, effects=effects, seed=seed, changes=changes, backend=backend)
+    notes += list(log.warnings)
     m = log.motors
     if len(m.t) < 2:
         raise ValueError(f"{log.path}: /neck/motors has {len(m.t)} sample(s): nothing to replay")
@@ -152,6 +156,12 @@ def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, ef
         i = int(bad[0])
         raise ValueError(f"{log.path}: /neck/motors samples must be one control period ({period} s) apart to be "
                          f"replayed; t = {m.t[i]!r} -> {m.t[i + 1]!r} s")
+    f_max = plant.params.actuation.f_max
+    clipped = (m.force < 0) | (m.force > f_max)
+    if clipped.any():
+        notes.append(f"{int(clipped.any(axis=1).sum())} of {len(m.t)} logged force samples lie outside the plant's "
+                     f"[0, f_max] = [0, {f_max:g}] N and were clipped to it (largest excess "
+                     f"{float(np.max(np.maximum(-m.force, m.force - f_max))):.4g} N): the drift includes that change")
     if abs(m.t[0]) > 1e-9:
         notes.append(f"log starts at t = {m.t[0]:.6f} s: the replay starts there at plant time 0")
     if log.truth is not None and len(log.truth.t):

@@ -158,7 +158,7 @@ def test_simulate_command(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--duration-scale", "0"], "duration_scale"),
+    (["--duration-scale", "0"], "argument --duration-scale: must be"),
     (["-o", "run.txt"], "end in .mcap"),
     (["--table3", "--law", "1", "2"], "one law"),
     (["--table3", "--no-pulleys"], "--table3 chooses"),

@@ -30,7 +30,7 @@ from identification.measured import MeasuredData
 EFFECTS = E.registered()
 MOTOR = [c for c in EFFECTS if c.kind == "motor"]
 NATIVE = [c for c in MOTOR if c.baseline or c().native_fields(4) is not None]
-WITH_COLUMNS = [c for c in EFFECTS if c.columns]
+WITH_COLUMNS = [c for c in EFFECTS if c.columns and c.columns_exact]
 SIGNED = [c for c in EFFECTS if any(col.signed for col in c.columns)]
 
 
@@ -52,7 +52,7 @@ def _shape(cls, rng):
 def _magnitudes(cls, rng, n):
     out = {}
     for col in cls.columns:
-        count = {"cable": n + 1, "joint": n, "one": 1}[col.per]
+        count = len(col.names(n))
         lo = 0.05                     # inside what to_plant keeps (it clips unphysical values)
         scale = {"N/m": 3000.0, "N s/m": 50.0, "kg": 0.05, "N": 8.0}.get(col.unit, 0.2)
         out[col.symbol] = scale * rng.uniform(lo, 1.0, count)
@@ -113,7 +113,31 @@ def _observations(d, params, effects, elastic, nominal):
     f = an.motor_friction(w, params) + sum((e.motor_force(w, t) for e in effects.motor_effects()), np.zeros_like(w))
     lk, lk0 = (an.linkage_dynamics(d.alpha, d.prep.alpha_dot, p) for p in (params, nominal))
     dl = np.einsum("sij,sj->si", lk.M - lk0.M, d.prep.alpha_ddot) + (lk.c - lk0.c) + (lk.g - lk0.g)
+    dl = dl + _mujoco_spring_torque(d.alpha, params, effects) - _mujoco_spring_torque(d.alpha, params, E.Effects())
     return f + t, np.einsum("sij,sj->si", d.Z, f) + dl, t
+
+
+def _mujoco_spring_torque(alpha, params, effects):
+    """(S, N) N m the cables must add against MuJoCo's passive tendon springs at the poses alpha
+    (S, N), with the effects' MuJoCo edits (``setup_mujoco``): minus qfrc_spring projected on alpha
+    by virtual work (hinge speeds per alpha_dot of the closed-form pose, helpers alpha/2)."""
+    import mujoco
+
+    from neck_sim.mjcf import pose_qpos
+
+    pl = P.Plant(params, effects=effects)
+    m, dd, ix = pl.model, pl.data, pl._ix
+    out = np.zeros_like(alpha)
+    for s, a in enumerate(alpha):
+        pq = pose_qpos(a, params)
+        dd.qpos[ix.qpos_A], dd.qpos[ix.qpos_B], dd.qpos[ix.qpos_D] = pq.q_A, pq.q_B, pq.q_D
+        dd.qpos[ix.qpos_helper] = pq.q_helper
+        mujoco.mj_forward(m, dd)
+        q = dd.qfrc_spring
+        tau = pq.dq_A * q[ix.dof_A] + pq.dq_B * q[ix.dof_B] + pq.dq_D * q[ix.dof_D]
+        np.add.at(tau, ix.helper_joint, pq.dq_helper * q[ix.dof_helper])
+        out[s] = -tau
+    return out
 
 
 @pytest.mark.parametrize("cls", WITH_COLUMNS, ids=ids(WITH_COLUMNS))
@@ -143,14 +167,15 @@ def test_fitted_values_to_plant_give_the_columns_forces(cls, rng):
 def test_shifting_effects_reach_the_plant_as_fitted(rng):
     """Effects without columns: the rest elongations and the delay the fit uses are the plant's."""
     shifting = [c for c in EFFECTS if not c.columns]
-    assert {c.kind for c in shifting} >= {"elongation", "command"}
+    assert {c.kind for c in shifting} >= {"elongation", "command", "camera"}
     for cls in shifting:
         shape = _shape(cls, rng)
         params, eff = cls.to_plant(default_params(3), {}, shape)
         assert eff is not None and params == default_params(3)
         np.testing.assert_array_equal(eff.elongation_offset(4), cls.fit_elongation_offset(shape, 4))
         assert eff.command_delay == cls.fit_delay(shape)
-        assert np.any(eff.elongation_offset(4) != 0) or eff.command_delay > 0
+        assert eff.camera_delay == cls.fit_camera_shift(shape)
+        assert np.any(eff.elongation_offset(4) != 0) or eff.command_delay > 0 or eff.camera_delay > 0
 
 
 @pytest.mark.parametrize("cls", EFFECTS, ids=ids(EFFECTS))
@@ -158,7 +183,7 @@ def test_names_units_and_json(cls):
     assert cls.name in E.names() and E.get(cls.name) is cls
     assert cls.description and "\n" not in cls.description and cls.__doc__ and len(cls.__doc__) > 60
     for col in cls.columns:
-        assert col.symbol and col.unit and len(col.names(3)) == {"cable": 4, "joint": 3, "one": 1}[col.per]
+        assert col.symbol and col.unit and len(col.names(3)) == {"cable": 4, "joint": 3, "spring": 6, "one": 1}[col.per]
     for sh in cls.shapes:
         assert sh.name and sh.unit
     eff = cls()

@@ -60,7 +60,8 @@ def test_tf_and_scene_validate_against_foxglove_schemas(tmp_path, n_joints, seed
             assert schema.name in PUBLISHED, f"{channel.topic}: {schema.name} has no published schema here"
             msg = json.loads(message.data)
             errors = sorted(validators[schema.name].iter_errors(msg), key=lambda e: list(e.path))
-            assert not errors, f"{channel.topic} at {message.log_time} ns: {errors[0].message} at {list(errors[0].path)}"
+            assert not errors, (f"{channel.topic} at {message.log_time} ns: {errors[0].message} "
+                                f"at {list(errors[0].path)}")
             counted[channel.topic] += 1
             sources.update(e["id"] for e in msg.get("entities", []))
     assert counted["/tf"] >= 9 and counted["/neck/scene"] >= 27, counted     # 30 Hz over 0.3 s, 3 sources

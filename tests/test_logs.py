@@ -15,6 +15,8 @@ import pytest
 from mcap.reader import make_reader
 from test_logs_fixtures import motors_messages, synthetic_arrays, write_arrays, write_raw
 
+from neck_sim import atomic
+from neck_sim.atomic import TEMP_PREFIX
 import neck_sim.logs.reader as reader_mod
 from neck_sim.logs import LogError, LogWriter, read_log
 from neck_sim.params import default_params
@@ -346,7 +348,12 @@ def test_crash_mid_run_leaves_nothing_under_the_final_name(tmp_path):
     assert subprocess.run([sys.executable, "-c", code]).returncode == 3
     assert not path.exists()
     leftovers = os.listdir(tmp_path)
-    assert leftovers and all(name.startswith(".tmp-") for name in leftovers)
+    assert leftovers and all(name.startswith(TEMP_PREFIX) for name in leftovers)
+    # the next run writing into that folder recognises the dead process's file and removes it
+    atomic._swept.discard(str(tmp_path))
+    with LogWriter(tmp_path / "next.mcap", default_params(3)) as w:
+        w.motors(0.0, np.zeros(4), np.ones(4))
+    assert sorted(os.listdir(tmp_path)) == ["next.mcap"]
 
 
 def test_writing_over_an_existing_log_replaces_it_atomically(tmp_path):

@@ -27,10 +27,14 @@ def synthetic_arrays(params, seconds: float = 2.0, seed: int = 0) -> dict:
         return x
 
     cam_idx = np.arange(0, steps, int(round(rate / params.sensors.camera_rate_hz)))
+    # measured topics stay plausible (neck_sim.logs.contract.check_plausible): forces in [0, f_max],
+    # joint angles within the joint range
+    angle = params.geometry.alpha_max
     return {
-        "motors": {"t": t, "theta": sig(n + 1, 10.0), "force": sig(n + 1, 30.0)},
-        "camera": {"t": t[cam_idx], "alpha": sig(n, 0.4)[cam_idx]},
-        "reference": {"t": t, "alpha_d": sig(n, 0.4)},
+        "motors": {"t": t, "theta": sig(n + 1, 10.0),
+                   "force": np.minimum(np.abs(sig(n + 1, 30.0)), params.actuation.f_max)},
+        "camera": {"t": t[cam_idx], "alpha": np.clip(sig(n, 0.4), -angle, angle)[cam_idx]},
+        "reference": {"t": t, "alpha_d": np.clip(sig(n, 0.4), -angle, angle)},
         "estimate": {"t": t, "alpha_hat": sig(n, 0.4)},
         "truth": {"t": t, "alpha": sig(n, 0.4), "alpha_dot": sig(n), "tension": sig(n + 1, 20.0),
                   "elongation": sig(n + 1, 1e-3)},

@@ -1,8 +1,10 @@
 import numpy as np
 import pytest
 
+from controllers.campaign import ExecutorSpec, run_campaign
 from controllers.parallel import RunSpec, run_all
 from neck_sim.effects import Effects, ViscousFriction
+from neck_sim.logs import read_log
 from neck_sim.params import default_params
 
 
@@ -11,19 +13,36 @@ def test_parallel_runs_equal_serial_runs(tmp_path):
     specs = [RunSpec("law 2", p, law=2, duration_scale=0.15, seed=1, log_path=str(tmp_path / "a.mcap")),
              RunSpec("viscous", p, law=1, duration_scale=0.15, seed=2,
                      effects=Effects(viscous_friction=ViscousFriction(c_v=0.1)))]
-    par = run_all(specs, workers=2, progress=False)
-    ser = run_all(specs, workers=1, progress=False)
+    par = run_all(specs, ExecutorSpec(workers=2), progress=False)
+    log = read_log(tmp_path / "a.mcap", topics=("motors",))        # shipped back by the worker
+    ser = run_all(specs, None, progress=False)
     for a, b in zip(par, ser):
         np.testing.assert_array_equal(a.theta, b.theta)
         np.testing.assert_array_equal(a.force, b.force)
     assert not np.array_equal(par[0].force, par[1].force)
-    assert (tmp_path / "a.mcap").exists()
+    assert par[0].log_path == str(tmp_path / "a.mcap")
+    np.testing.assert_array_equal(log.motors.force, ser[0].force)
 
 
 def test_failures_name_the_run():
     p = default_params()
     bad = RunSpec("bad trajectory", p, trajectory="no-such-trajectory")
     with pytest.raises(RuntimeError, match="bad trajectory"):
-        run_all([bad, RunSpec("ok", p, duration_scale=0.1)], workers=2, progress=False)
+        run_all([bad, RunSpec("ok", p, duration_scale=0.1)], ExecutorSpec(workers=2), progress=False)
     with pytest.raises(ValueError, match="unique"):
         run_all([RunSpec("x", p), RunSpec("x", p)], progress=False)
+
+
+def test_executor_choice_is_checked():
+    with pytest.raises(ValueError, match="workers"):
+        ExecutorSpec(workers=0)
+    with pytest.raises(ValueError, match="cluster.*tcp://"):
+        ExecutorSpec(cluster="localhost")
+    assert ExecutorSpec(workers=1).serial and not ExecutorSpec(cluster="tcp://127.0.0.1:8786").serial
+    with pytest.raises(RuntimeError, match="job 'b' failed.*ZeroDivisionError"):
+        run_campaign(_inverse, [1, 0], ExecutorSpec(workers=1), labels=["a", "b"], progress=False)
+    assert run_campaign(_inverse, [1, 2, 4], ExecutorSpec(workers=2), progress=False) == [1.0, 0.5, 0.25]
+
+
+def _inverse(x):
+    return 1 / x

@@ -149,5 +149,6 @@ def test_replay_with_parameters_of_another_n_names_both(tmp_path):
 
     log = tmp_path / "run.mcap"
     plant_run(log, seconds=0.1)
-    with pytest.raises(P.ParameterError, match=r"N = 2 joints but the log .*run\.mcap was recorded with N = 3"):
+    with pytest.raises(P.ParameterError,
+                       match=r"N = 2 joints and 3 cables but the log .*run\.mcap was recorded with N = 3 and 4"):
         replay(log, params=P.default_params(2))

@@ -154,7 +154,7 @@ def test_mcap_carries_the_cable_count_and_routing(tmp_path):
     with LogWriter(path, p) as w:
         for k in range(5):
             w.motors(k * 0.002, rng.normal(size=4), rng.uniform(0, 50, 4))
-            w.camera(k * 0.002, rng.normal(size=4))
+            w.camera(k / 30, rng.uniform(-1, 1, 4))     # plausible: 30 Hz, inside the joint range
     log = read_log(path)
     assert log.params.routing == p.routing and log.motors.theta.shape == (5, 4)
     meta = neck_metadata(p)

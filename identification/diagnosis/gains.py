@@ -114,12 +114,14 @@ def alpha_hat_errors(data: MeasuredData, fits, holdout: np.ndarray, step: int = 
     B = len(fits)
     alpha0 = np.broadcast_to(data.alpha[0], (B, data.n))
     a_hat = estimate_alpha_pinv(np.broadcast_to(theta, xs.shape), data.params, xs, alpha0=alpha0)
-    tc, ac = data.prep.camera
-    inside = (tc >= tq[0]) & (tc <= tq[-1])
-    tc, ac = tc[inside], ac[inside]
-    held_out = np.interp(tc, data.t, holdout.astype(float)) > 0.5
+    tc_all, ac_all = data.prep.camera
     out = []
     for b in range(B):
+        # a model with a camera delay compares the frame stamped t + delay with alpha_hat(t)
+        tc = tc_all - sum(t.effect.fit_camera_shift(dict(t.shape)) for t in fits[b].model.terms)
+        inside = (tc >= tq[0]) & (tc <= tq[-1])
+        tc, ac = tc[inside], ac_all[inside]
+        held_out = np.interp(tc, data.t, holdout.astype(float)) > 0.5
         at = np.stack([np.interp(tc, tq, a_hat[b, :, j]) for j in range(data.n)], axis=1)
         err = np.degrees(at - ac)
         out.append(AlphaHatErrors(AngleErrors.of(err[held_out]), AngleErrors.of(err), tc, err))

@@ -33,10 +33,12 @@ def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
     """1-based items (``per`` = "cable" or "joint") whose magnitude (the effect's first column) is
     clearly non-zero; None when that column is not one per such item."""
     cols = term.effect.columns
-    if not cols or cols[0].per != per or not fit.has(cols[0].symbol):
+    # per-spring magnitudes (2 per joint: left, right) locate joints
+    items_per = {per: 1, "spring": 2} if per == "joint" else {per: 1}
+    if not cols or cols[0].per not in items_per or not fit.has(cols[0].symbol):
         return None
     keep = clearly_nonzero(fit.group(cols[0].symbol), fit.group_sigma(cols[0].symbol))
-    return [int(i) + 1 for i in np.nonzero(keep)[0]]
+    return sorted({int(i) // items_per[cols[0].per] + 1 for i in np.nonzero(keep)[0]})
 
 
 def _per_cable_keys(term: Term) -> dict[str, tuple]:
@@ -59,7 +61,8 @@ def cables_of(fit: Fit, term: Term) -> list[int] | None:
 
 
 def joints_of(fit: Fit, term: Term) -> list[int] | None:
-    """1-based joints of an effect fitted per joint (spring errors), as :func:`cables_of`."""
+    """1-based joints of an effect fitted per joint or per side spring (spring errors: the
+    parameter names say which side, ``dk(2L)``), as :func:`cables_of`."""
     return _located(fit, term, "joint")
 
 

@@ -17,7 +17,9 @@ from identification.diagnosis.search import retune_shapes
 from identification.diagnosis.selection import run_step
 from identification.diagnosis.settings import DiagnosisSettings, parse_model
 from identification.diagnosis.split import split_samples
+from identification.diagnosis.structure import leftover_structure
 from identification.preprocessing import Measurements
+from neck_sim.analytic import UnreachableError
 from neck_sim.params import NeckParams
 
 
@@ -44,6 +46,7 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     s = settings or DiagnosisSettings()
     model = parse_model(model)
     timings = {}
+    notes: list[str] = []
     t0 = time.perf_counter()
     split = split_samples(data.t, data.activity, s)
     steps = []
@@ -62,7 +65,12 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
     fits = [e.fit for e in evaluated]
     t1 = time.perf_counter()
-    alpha = alpha_hat_errors(data, fits, split.holdout) if s.alpha_hat else [None] * len(fits)
+    alpha = [None] * len(fits)
+    if s.alpha_hat:
+        try:
+            alpha = alpha_hat_errors(data, fits, split.holdout)
+        except UnreachableError as exc:        # the motors reach no pose: reported, not fatal
+            notes.append(f"alpha_hat not evaluated: {exc}")
     timings["alpha_hat"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     resim = {}
@@ -76,6 +84,9 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
                               residual_rms(data, ev.fit, ev.fit.residuals(), split.holdout),
                               residual_rms(data, ev.fit, ev.fit.residuals(), split.train),
                               alpha[i], resim.get(i), ev.cv) for i, ev in enumerate(evaluated)]
+    t1 = time.perf_counter()
+    leftover = leftover_structure(data, fits[-1], evaluated[-1].cv, alpha[-1], s.structure)
+    timings["structure"] = time.perf_counter() - t1
     findings = []
     for i, st in enumerate(steps):
         c = st.chosen
@@ -84,9 +95,9 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
         ctx = StepContext(data, split, s, st.base, st.scales)
         findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
                                 cables_of(c.fit, c.term), joints_of(c.fit, c.term), term_parameters(ctx, c), c,
-                                Gain(summaries[i], summaries[i + 1])))
+                                Gain(summaries[i], summaries[i + 1]), leftover.found))
     return Diagnosis(source, model, split, tuple(steps), tuple(findings), tuple(summaries),
-                     ExtendedModel.of(fits[-1], data.params), timings, s, data)
+                     ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes))
 
 
 def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, params: NeckParams | None = None,

@@ -14,6 +14,8 @@ from identification.diagnosis.parameters import Parameter, all_parameters
 from identification.diagnosis.resimulation import Resimulation
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
+from identification.diagnosis.structure import Leftover
+from neck_sim.effects import NONE, UNEXPLAINED
 from neck_sim.atomic import atomic_write_json, jsonable
 from neck_sim.params import NeckParams, to_dict
 
@@ -82,7 +84,9 @@ class Gain:
 class Finding:
     """An effect forward selection accepted at ``step`` (1-based): its name (a list of names when
     the data cannot tell look-alikes apart), where it acts (1-based cables or joints, None when
-    not per cable or joint), its fitted parameters, the evidence and the gain."""
+    not per cable or joint), its fitted parameters, the evidence, the gain, and the structure the
+    final model still leaves in the residuals (``leftover``: empty when the findings explain the
+    data to within noise; else the finding is no clean explanation)."""
 
     step: int
     effect: object
@@ -91,11 +95,13 @@ class Finding:
     parameters: dict
     evidence: CandidateScore
     gain: Gain
+    leftover: tuple = ()
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "cables": self.cables, "joints": self.joints,
                 "parameters": _params_dict(self.parameters), "evidence": self.evidence.evidence(),
-                "gain": self.gain.to_dict(), "step": self.step, "model_after": self.gain.after.description}
+                "gain": self.gain.to_dict(), "step": self.step, "model_after": self.gain.after.description,
+                "leftover": [x.to_dict() for x in self.leftover[:5]]}
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,11 +168,20 @@ class Diagnosis:
     timings: dict
     settings: DiagnosisSettings
     data: MeasuredData | None = None
+    leftover: Leftover | None = None
+    notes: tuple = ()
 
     @property
     def verdict(self):
-        """The first step's verdict: an effect name, a list of names when ambiguous, or "none"."""
-        return self.steps[0].verdict if self.steps else "none"
+        """The first step's verdict (an effect name, a list of names when ambiguous, or "none"),
+        with ``"unexplained"`` when the final model leaves structure beyond noise: alone instead
+        of "none", appended to the names otherwise."""
+        v = self.steps[0].verdict if self.steps else NONE
+        if self.leftover is None or not self.leftover.significant:
+            return v
+        if v == NONE:
+            return UNEXPLAINED
+        return (list(v) if isinstance(v, list) else [v]) + [UNEXPLAINED]
 
     @property
     def baseline(self) -> ModelSummary:
@@ -178,6 +193,8 @@ class Diagnosis:
 
     def to_dict(self) -> dict:
         return jsonable({"verdict": self.verdict, "findings": [f.to_dict() for f in self.findings],
+                         "unexplained": None if self.leftover is None else self.leftover.to_dict(),
+                         "notes": list(self.notes),
                          "baseline": self.baseline.to_dict(), "final": self.final.to_dict(),
                          "extended_model": self.extended.to_dict(),
                          "steps": [s.to_dict(i) for i, s in enumerate(self.steps)],

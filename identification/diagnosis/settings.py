@@ -52,6 +52,24 @@ def parse_model(spec) -> ModelSpec:
 
 
 @dataclass(frozen=True)
+class StructureSettings:
+    """``alpha``: family-wise false-alarm level (Bonferroni over every test); ``min_rho``: the
+    smallest |correlation| with a state feature that counts as structure; ``min_rho_white``: the
+    same for the lag-one autocorrelation at the filter's bandwidth.  The defaults sit above what
+    noise-only logs of the simulated prototype give (README, "Detection power"); the tests are in
+    :mod:`identification.diagnosis.structure`."""
+
+    alpha: float = 0.01
+    min_rho: float = 0.35
+    min_rho_white: float = 0.6
+    alpha_hat: bool = True
+
+    def __post_init__(self):
+        if not (0 < self.alpha < 1 and 0 < self.min_rho < 1 and 0 < self.min_rho_white < 1):
+            raise ValueError("structure: alpha, min_rho and min_rho_white must lie in (0, 1)")
+
+
+@dataclass(frozen=True)
 class DiagnosisSettings:
     """Method settings of the diagnosis (see the module docstring)."""
 
@@ -66,6 +84,7 @@ class DiagnosisSettings:
     alpha_hat: bool = True
     iterations: int = 3
     preprocess: PreprocessSettings = field(default_factory=PreprocessSettings)
+    structure: StructureSettings = field(default_factory=StructureSettings)     # the "unexplained" tests
 
     def __post_init__(self):
         if self.moves_per_block < 1 or self.holdout_every < 2:
@@ -81,4 +100,6 @@ class DiagnosisSettings:
         return {"moves_per_block": self.moves_per_block, "holdout_every": self.holdout_every, "chunk_s": self.chunk_s,
                 "min_improvement": self.min_improvement, "alpha": self.alpha, "max_steps": self.max_steps,
                 "candidates": list(self.candidates), "resimulate": self.resimulate, "alpha_hat": self.alpha_hat,
-                "iterations": self.iterations}
+                "iterations": self.iterations, "structure": {"alpha": self.structure.alpha,
+                                                             "min_rho": self.structure.min_rho,
+                                                             "min_rho_white": self.structure.min_rho_white}}

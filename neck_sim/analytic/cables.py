@@ -197,7 +197,8 @@ def cable_kinematics(alpha, alpha_dot, params: NeckParams, *, allow_outside_rang
 def elongation(theta, alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
     a = params.actuation
-    return cable_lengths(alpha, params, allow_outside_range=allow_outside_range) + (a.r_d / a.R) * np.asarray(theta, dtype=float)
+    return (cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
+            + (a.r_d / a.R) * np.asarray(theta, dtype=float))
 
 
 def motor_angles_rigid(alpha, params: NeckParams, elongation=None, *, allow_outside_range: bool = False) -> np.ndarray:

@@ -194,7 +194,8 @@ def mass_matrix(alpha, params: NeckParams, motors: bool = True, *, allow_outside
     return M
 
 
-def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
+def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
+                allow_outside_range: bool = False) -> np.ndarray:
     """Coriolis/centrifugal vector c(alpha, alpha_dot) of eq (26) corrected, (..., N), N m.
 
     Motor part: I_a (R/r_d)^2 Z Zdot^T alpha_dot (erratum 5: not Zdot Z^T).
@@ -230,10 +231,12 @@ def potential_energy(alpha, params: NeckParams, *, allow_outside_range: bool = F
     return v + 0.5 * (k * ((left - l0) ** 2 + (right - l0) ** 2)).sum(-1)
 
 
-def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
+def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
+                   allow_outside_range: bool = False) -> np.ndarray:
     """1/2 alpha_dot^T M alpha_dot (J)."""
     ad = np.asarray(alpha_dot, dtype=float)
-    return 0.5 * np.einsum("...i,...ij,...j->...", ad, mass_matrix(alpha, params, motors, allow_outside_range=allow_outside_range), ad)
+    M = mass_matrix(alpha, params, motors, allow_outside_range=allow_outside_range)
+    return 0.5 * np.einsum("...i,...ij,...j->...", ad, M, ad)
 
 
 @dual
@@ -329,7 +332,8 @@ def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
     return x
 
 
-def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
+def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True, *,
+                       allow_outside_range: bool = False) -> np.ndarray:
     """alpha_ddot of eq (32) with inextensible cables (x_c = 0), (..., N), rad/s^2.
 
     Motor speeds for friction follow eq (21): theta_dot = (R/r_d) Z^T alpha_dot.
@@ -359,7 +363,8 @@ class ElasticState(NamedTuple):
     theta_dot: np.ndarray
 
 
-def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True, *, allow_outside_range: bool = False):
+def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True, *,
+                       allow_outside_range: bool = False):
     """(alpha_ddot, theta_ddot, tension) of eqs (29), (30) with elastic cables (eq 54)."""
     act = params.actuation
     ck = cable_kinematics(state.alpha, state.alpha_dot, params, allow_outside_range=allow_outside_range)

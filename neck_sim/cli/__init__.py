@@ -5,13 +5,25 @@ This package is the composer: it is the only part of ``neck_sim`` allowed to imp
 lives in its own module of this package exposing ``HELP``, ``add_arguments(parser)`` and
 ``run(args) -> int``; the table below registers it.  Modules are imported only when their command
 runs, so ``neck-sim --help`` stays fast.
+
+Exit status: 0 success; 1 a check the command ran failed (drift, tolerance); 2 a user error (bad
+option, input or output path; one line naming the problem, no traceback); 130 Ctrl-C and 143
+SIGTERM (one line; temporary files removed); 70 an internal error (one line, and the full
+traceback written to a file whose path the line gives).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import datetime
 import importlib
+import os
+import signal
 import sys
+import tempfile
+import threading
+import traceback
 
 # name -> module (inside neck_sim.cli) implementing it
 COMMANDS: dict[str, str] = {
@@ -45,14 +57,60 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that every ``finally`` and writer cleanup runs."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_as_exception():
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
-        return int(args._run(args) or 0)
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def write_traceback(exc: BaseException) -> str:
+    """Write the full traceback of ``exc`` with the command line to a file; returns its path."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    fd, path = tempfile.mkstemp(prefix=f"neck-sim-traceback-{stamp}-", suffix=".txt")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(f"command line: {sys.argv!r}\npython {sys.version}\n\n")
+        fh.write("".join(traceback.format_exception(exc)))
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:       # --help (0) or a bad option (2, argparse printed the usage)
+        return exc.code if isinstance(exc.code, int) else 2
+    name = f"neck-sim {args.command}"
+    try:
+        with _sigterm_as_exception():
+            return int(args._run(args) or 0)
+    except Terminated:
+        print(f"{name}: terminated (SIGTERM); unfinished output files were removed", file=sys.stderr)
+        return 143
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted (Ctrl-C); unfinished output files were removed", file=sys.stderr)
+        return 130
     except (ValueError, OSError, RuntimeError) as exc:
         # Errors from bad input name their problem; show that, not a traceback.
-        print(f"neck-sim {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:        # a bug: one line here, the whole story in a file
+        path = write_traceback(exc)
+        print(f"{name}: internal error: {type(exc).__name__}: {exc} (a bug in neck-sim; please report it with "
+              f"the full traceback written to {path})", file=sys.stderr)
+        return 70
 
 
 if __name__ == "__main__":

@@ -11,7 +11,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-
+    from neck_sim.cli.common import check_paths
+    check_paths(inputs={"LOG": args.log}, files={"--json": args.json})
     from neck_sim.check import check_log
     from neck_sim.atomic import atomic_write_json
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from neck_sim.cli.common import add_params_arguments, params_from_args
+from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_int, params_from_args, positive_float,
+                                 positive_int)
 
 HELP = ("compare the MuJoCo neck with the analytic model (cable lengths, Z, M, g) at random poses; "
         "exit code 1 when an error exceeds its threshold")
@@ -12,20 +13,21 @@ HELP = ("compare the MuJoCo neck with the analytic model (cable lengths, Z, M, g
 
 def add_arguments(parser) -> None:
     add_params_arguments(parser)
-    parser.add_argument("--samples", type=int, default=200, help="random poses (default 200)")
-    parser.add_argument("--range-deg", type=float, default=60.0,
+    parser.add_argument("--samples", type=positive_int, default=200, help="random poses (default 200)")
+    parser.add_argument("--range-deg", type=positive_float, default=60.0,
                         help="poses uniform in [-range, range]^N degrees (default 60)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--json", metavar="PATH", help="also write the table as JSON (atomically)")
     parser.add_argument("--dynamics", action="store_true",
                         help="also run the dynamics check: 10 s of constant antagonistic forces (loop gaps, "
                              "tensions) and the free response against the analytic eqs 29-30 over 1 s")
-    parser.add_argument("--timestep", type=float, default=None, help="physics timestep for --dynamics (s)")
+    parser.add_argument("--timestep", type=positive_float, default=None, help="physics timestep for --dynamics (s)")
 
 
 def run(args) -> int:
     from neck_sim.crossval import crossval, format_table
 
+    check_paths(inputs={"--params": args.params}, files={"--json": args.json})
     params = params_from_args(args)
     report = crossval(params, samples=args.samples, seed=args.seed, alpha_range=math.radians(args.range_deg),
                       progress=args.samples >= 500)

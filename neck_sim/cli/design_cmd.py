@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from neck_sim.cli.common import add_params_arguments, params_from_args
+from neck_sim.cli.common import add_params_arguments, check_paths, nonnegative_int, params_from_args
 
 HELP = ("compare cable routings for one neck (default: the 10-X neck): reachable workspace, stiffness, "
         "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
@@ -17,7 +17,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--cables", type=int, default=4,
                         help="cable count of the proposed strategies (even, >= 4; default 4)")
     parser.add_argument("--samples", type=int, default=500, help="tension samples per routing (default 500)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--no-strategies", action="store_true",
                         help="evaluate only the parameter file's routing")
 
@@ -45,6 +45,7 @@ def run(args) -> int:
     from neck_sim.design import evaluate
     from neck_sim.design_report import OUTPUT_FILES, write_report
 
+    check_paths(inputs={"--params": args.params}, dirs={"-o": args.out})
     if args.samples < 1:
         raise ValueError(f"--samples: need at least 1, got {args.samples}")
     if args.params is None and args.n_joints is None:

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
+
+from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
+                                 positive_int, probability, report_input_warnings)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -21,15 +25,16 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
     parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
     parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
-    parser.add_argument("--steps", type=int, default=3, metavar="K",
+    parser.add_argument("--steps", type=positive_int, default=3, metavar="K",
                         help="forward selection: at most K findings (default 3; 1 = the verdict only)")
-    parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
-    parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
-    parser.add_argument("--alpha", type=float, default=0.01, help="significance level of the tests (default 0.01)")
-    parser.add_argument("--min-improvement", type=float, default=0.02,
+    parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
+    parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
+    parser.add_argument("--alpha", type=probability, default=0.01, help="significance level of the tests (default 0.01)")
+    parser.add_argument("--min-improvement", type=nonnegative_float, default=0.02,
                         help="smallest held-out score improvement that counts (default 0.02)")
     parser.add_argument("--candidates", default=None,
                         help="comma-separated effects to consider (default: the whole vocabulary)")
+    add_force_range_argument(parser)
     parser.add_argument("--no-resim", action="store_true", help="skip the open-loop re-simulations")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
@@ -38,27 +43,29 @@ def run(args) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from identification.report import format_summary, write_report
     from neck_sim.logs import read_log
-    from neck_sim.params import load
 
+    check_paths(inputs={"LOG": args.log, "--params": args.params,
+                        "--model": args.model if os.path.isfile(args.model) else None},
+                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report})
     model = parse_model(args.model)              # fail early on a bad --model
-    params = load(args.params) if args.params else None
+    params = load_params_file(args.params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
-    if args.steps < 1:
-        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
     settings = DiagnosisSettings(max_steps=args.steps, alpha=args.alpha, min_improvement=args.min_improvement,
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
-                   require=("motors", "camera"))
+                   require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
           f"model: {model.describe()}", file=sys.stderr)
     if params is not None and params.n_joints != log.n_joints:
         raise ValueError(f"--params {args.params}: {params.n_joints} joints, the log has {log.n_joints}")
     diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
     print(format_summary(diag))
+    accepted = report_input_warnings(log.warnings)
     if args.json:
-        diag.write_json(args.json)
+        from neck_sim.atomic import atomic_write_json
+        atomic_write_json(args.json, {**diag.to_dict(), **accepted})
         print(f"wrote {args.json}", file=sys.stderr)
     if args.extended:
         diag.write_model(args.extended)

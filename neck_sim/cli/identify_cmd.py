@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import sys
 
+from neck_sim.cli.common import (add_force_range_argument, check_paths, nonnegative_float, positive_float,
+                                 report_input_warnings)
+
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
 
 
@@ -11,17 +14,18 @@ def add_arguments(parser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
     parser.add_argument("--json", metavar="PATH", help="write the identified values, sigmas and errors as JSON")
     parser.add_argument("--plots", metavar="DIR", help="write figures 4-8 as PNG files into DIR")
-    parser.add_argument("--start", type=float, default=None, help="use the log from this time on (s)")
-    parser.add_argument("--end", type=float, default=None, help="use the log up to this time (s)")
+    parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
+    parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
     parser.add_argument("--models", default="friction,elastic,variable",
                         help="comma-separated subset of friction,elastic,variable (default: all)")
-    parser.add_argument("--motor-cutoff", type=float, default=None, metavar="HZ",
+    parser.add_argument("--motor-cutoff", type=positive_float, default=None, metavar="HZ",
                         help="Butterworth cutoff for encoders and forces (default: residual analysis)")
-    parser.add_argument("--camera-cutoff", type=float, default=None, metavar="HZ",
+    parser.add_argument("--camera-cutoff", type=positive_float, default=None, metavar="HZ",
                         help="Butterworth cutoff for the camera angles (default: residual analysis)")
-    parser.add_argument("--weight", type=float, default=100.0, help="weight W of the torque rows, eqs (44)-(45)")
-    parser.add_argument("--slack-threshold", type=float, default=2.0, metavar="N",
+    parser.add_argument("--weight", type=positive_float, default=100.0, help="weight W of the torque rows, eqs (44)-(45)")
+    parser.add_argument("--slack-threshold", type=nonnegative_float, default=2.0, metavar="N",
                         help="tension (eq 41) below which a cable sample counts as slack and is left out")
+    add_force_range_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
@@ -31,6 +35,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    check_paths(inputs={"LOG": args.log}, files={"--json": args.json}, dirs={"--plots": args.plots})
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
     from neck_sim.logs import read_log
@@ -41,7 +46,8 @@ def run(args) -> int:
         weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
-    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",))
+    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
+                   accept_out_of_range_forces=args.accept_out_of_range_forces)
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
@@ -50,6 +56,7 @@ def run(args) -> int:
     result = identify_log(log, settings, models=models)
     print(format_tables(result))
     summary = result.to_dict()
+    summary.update(report_input_warnings(log.warnings))
     comparison = None
     if args.simulators:
         from identification.simulator import compare_simulators

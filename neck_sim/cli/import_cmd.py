@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from neck_sim.cli.common import add_force_range_argument
+
 HELP = "turn the prototype's motors/camera CSV files into an MCAP log (columns: see --help)"
 
 EPILOG = """CSV columns (header row, any order, extra columns ignored, SI units, N joints from --params):
@@ -23,22 +25,28 @@ def add_arguments(parser) -> None:
     parser.add_argument("--params", metavar="PATH", help="parameter file (.json/.toml) with the nominal constants "
                                                          "(default: the 3-joint prototype)")
     parser.add_argument("--shift-time", action="store_true", help="subtract the earliest time of the files")
+    add_force_range_argument(parser)
     parser.add_argument("-o", "--output", required=True, metavar="MCAP", help="log to write")
 
 
 def run(args) -> int:
     from neck_sim import params as P
+    from neck_sim.cli.common import check_paths, load_params_file
+
+    check_paths(inputs={"--motors": args.motors, "--camera": args.camera, "--reference": args.reference,
+                        "--estimate": args.estimate, "--params": args.params}, files={"-o": args.output})
     from neck_sim.csv_import import import_csv
 
-    params = P.load(args.params) if args.params else P.default_params(3)
+    params = load_params_file(args.params) if args.params else P.default_params(3)
     if args.camera is None:
         print("note: no --camera file: the log cannot be used for identification or diagnosis")
     res = import_csv(args.motors, args.output, camera=args.camera, reference=args.reference,
-                     estimate=args.estimate, params=params, shift_time=args.shift_time)
+                     estimate=args.estimate, params=params, shift_time=args.shift_time,
+                     accept_out_of_range_forces=args.accept_out_of_range_forces)
     counts = ", ".join(f"{k} {v}" for k, v in res.counts.items())
     print(f"wrote {res.path}: {counts} samples over {res.duration:.3f} s (N = {params.n_joints})")
     if res.time_shift:
-        print(f"times shifted by -{res.time_shift:.6f} s")
+        print(f"times shifted by {-res.time_shift:+.6f} s")
     for kind, cols in res.ignored_columns.items():
         if cols:
             print(f"ignored {kind} columns: {', '.join(cols)}")

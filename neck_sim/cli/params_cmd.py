@@ -17,12 +17,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from neck_sim.cli.common import check_paths, load_params_file
+    check_paths(inputs={"--load": args.load}, files={"-o": args.output})
     chosen = [opt for opt, given in (("--load", args.load), ("--example", args.example),
                                      ("--n-joints", args.n_joints is not None)) if given]
     if len(chosen) > 1:
         raise ValueError(f"{' and '.join(chosen)}: choose one source of parameters")
     if args.load:
-        params = P.load(args.load)
+        params = load_params_file(args.load, "--load")
     elif args.example:
         params = P.example_params(args.example)
     else:

@@ -5,19 +5,21 @@ from __future__ import annotations
 
 from neck_sim import params as P
 from neck_sim.atomic import atomic_write_json
+from neck_sim.cli.common import check_paths, nonnegative_int, positive_int
 from neck_sim.pulley_study import pulley_effect
 
 HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increments 13 percent)"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--n-joints", type=int, default=3)
-    parser.add_argument("--samples", type=int, default=100_000)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--n-joints", type=positive_int, default=3)
+    parser.add_argument("--samples", type=positive_int, default=100_000)
+    parser.add_argument("--seed", type=nonnegative_int, default=0)
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
 
 
 def run(args) -> int:
+    check_paths(files={"--json": args.json})
     eff = pulley_effect(P.default_params(args.n_joints), args.samples, args.seed)
     print(f"{'indicator':<44} {'neck-sim':>9} {'median':>8} {'paper':>6}")
     print(f"{'joint torque |Zf - Z0 f| / |Zf|':<44} {100 * eff.torque_rel_diff:8.1f}% "

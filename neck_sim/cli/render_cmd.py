@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from neck_sim.cli.common import add_params_arguments, params_from_args
+from neck_sim.cli.common import add_params_arguments, check_paths, params_from_args, positive_int
 
 HELP = ("render the neck at the four main configurations of the control test (paper Fig. 10) with MuJoCo "
         "offscreen (EGL or OSMesa) into one PNG")
@@ -11,7 +11,7 @@ HELP = ("render the neck at the four main configurations of the control test (pa
 def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", default="neck_fig10.png", metavar="PNG",
                         help="output picture (default neck_fig10.png)")
-    parser.add_argument("--width", type=int, default=2000, metavar="W",
+    parser.add_argument("--width", type=positive_int, default=2000, metavar="W",
                         help="width of the whole picture in pixels, four panels (default 2000)")
     add_params_arguments(parser)
     parser.add_argument("--backend", choices=("auto", "egl", "osmesa", "glfw"), default="auto",
@@ -21,6 +21,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from neck_sim.render import render_figure10
 
+    check_paths(inputs={"--params": args.params}, files={"-o": args.output})
     params = params_from_args(args)
     res = render_figure10(args.output, params, width=args.width, backend=args.backend)
     print(f"wrote {res.path} (MUJOCO_GL={res.backend})")

@@ -6,23 +6,32 @@ HELP = ("reproduce the paper in simulation: cross-validation, identification (Ta
         "Table 3, diagnosis, figures; writes report.md, results.json and the MCAP logs")
 
 
+from neck_sim.cli.common import nonnegative_int, positive_float, positive_int
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce)")
     parser.add_argument("--quick", action="store_true",
                         help="half-length trajectories and fewer samples: the same stages in about a third of the time")
-    parser.add_argument("--seed", type=int, default=0, help="plant seed (camera noise) (default 0)")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="parallel closed-loop runs (default: one per core)")
-    parser.add_argument("--duration-scale", type=float, default=None, metavar="S",
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="plant seed (camera noise) (default 0)")
+    parser.add_argument("--workers", type=positive_int, default=None,
+                        help="local worker processes for the closed-loop runs (default: one per core; 1: serial)")
+    parser.add_argument("--cluster", default=None, metavar="tcp://HOST:PORT",
+                        help="run the closed-loop runs and the simulator comparison on this Dask scheduler "
+                             "(started with `dask scheduler`; workers with `dask worker ADDRESS --nthreads 1`)")
+    parser.add_argument("--duration-scale", type=positive_float, default=None, metavar="S",
                         help="scale every trajectory's duration (default 1, or 0.5 with --quick)")
     parser.add_argument("--no-render", action="store_true", help="skip the offscreen rendering of figure 10")
     parser.add_argument("--no-progress", action="store_true", help="no progress output")
 
 
 def run(args) -> int:
+    from neck_sim.cli.common import check_paths
+    check_paths(dirs={"--out": args.out})
     from neck_sim.experiments import ReproduceSettings, reproduce
 
-    settings = ReproduceSettings(out=args.out, quick=args.quick, seed=args.seed, workers=args.workers, scale=args.duration_scale,
+    settings = ReproduceSettings(out=args.out, quick=args.quick, seed=args.seed, workers=args.workers,
+                                 cluster=args.cluster, scale=args.duration_scale,
                                  progress=not args.no_progress, render=not args.no_render)
     rep = reproduce(settings)
     print(f"wrote {rep.report_path} and {rep.results_path} ({sum(rep.timings.values()):.0f} s; "

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from neck_sim.cli.common import add_params_arguments, params_from_args
+from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_float, nonnegative_int, params_from_args,
+                                 positive_float)
 
 import os
 
@@ -21,7 +22,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-log", action="store_true", help="do not write MCAP logs")
     parser.add_argument("--json", metavar="PATH", help="write the metrics as JSON")
     parser.add_argument("--plots", metavar="DIR", help="write figures 11-16 as PNG into DIR")
-    parser.add_argument("--duration-scale", type=float, default=1.0, metavar="S",
+    parser.add_argument("--duration-scale", type=positive_float, default=1.0, metavar="S",
                         help="scale every move and hold duration (default 1: 2.5 s moves, 1 s holds)")
     parser.add_argument("--table3", action="store_true",
                         help="Table 3: the law with/without pulleys in its model on rigid- and "
@@ -31,9 +32,9 @@ def add_arguments(parser) -> None:
                         help="controller model with r = 0 (the plant keeps its pulleys)")
     parser.add_argument("--cable-model", choices=("inextensible", "constant", "variable"),
                         help="override the law's estimator cable model")
-    parser.add_argument("--t-min", type=float, metavar="N", help="minimal cable tension of eq (65) (default 8.5 N)")
+    parser.add_argument("--t-min", type=nonnegative_float, metavar="N", help="minimal cable tension of eq (65) (default 8.5 N)")
     add_params_arguments(parser)
-    parser.add_argument("--seed", type=int, default=0, help="camera-noise seed")
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="camera-noise seed")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -57,6 +58,8 @@ def run(args) -> int:
     from controllers import experiments as ex
     from controllers.trajectories import make_trajectory
 
+    check_paths(inputs={"--params": args.params}, files={"-o": args.output, "--json": args.json},
+                dirs={"--plots": args.plots})
     params = params_from_args(args)
     if args.table3 and (args.rigid_cables or args.no_pulleys):
         raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")

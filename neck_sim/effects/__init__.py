@@ -23,7 +23,9 @@ import numpy as np
 from neck_sim.effects.actuation_delay import ActuationDelay
 from neck_sim.effects.base import Column, Design, Effect, Hidden, MotorEffect, Shape, clearly_nonzero
 from neck_sim.effects.cable_elasticity import CableElasticity
+from neck_sim.effects.camera_delay import CameraDelay
 from neck_sim.effects.dry_friction import DryFriction
+from neck_sim.effects.joint_friction import JointFriction
 from neck_sim.effects.payload import Payload
 from neck_sim.effects.pretension import PRETENSION_RANGE, Pretension
 from neck_sim.effects.pulley_friction import PulleyFriction
@@ -34,13 +36,16 @@ from neck_sim.effects.viscous_friction import ViscousFriction
 from neck_sim.params import NeckParams
 
 __all__ = ["Effect", "MotorEffect", "Column", "Shape", "Design", "Hidden", "clearly_nonzero", "register",
-           "unregister", "registered", "get", "names", "paper_model", "NONE", "VOCABULARY", "EFFECT_TYPES",
+           "unregister", "registered", "get", "names", "paper_model", "NONE", "UNEXPLAINED", "VOCABULARY", "EFFECT_TYPES",
            "make_effect", "Effects", "DryFriction", "ViscousFriction", "StribeckFriction", "PulleyFriction",
            "CableElasticity", "TensionStiffening", "Payload", "SpringError", "ActuationDelay", "Pretension",
-           "PRETENSION_RANGE"]
+           "PRETENSION_RANGE", "JointFriction", "CameraDelay"]
 
 NONE = "none"
 """The verdict when the model explains the data."""
+
+UNEXPLAINED = "unexplained"
+"""Part of the verdict when the residuals keep structure beyond noise that no effect removes."""
 
 _REGISTRY: dict[str, type[Effect]] = {}
 
@@ -53,8 +58,9 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise TypeError(f"register: expected a subclass of neck_sim.effects.Effect, got {cls!r}")
     name = cls.name
-    if not name or not name.isidentifier() or name == NONE:
-        raise ValueError(f"register: {cls.__name__}.name must be an identifier other than 'none', got {name!r}")
+    if not name or not name.isidentifier() or name in (NONE, UNEXPLAINED):
+        raise ValueError(f"register: {cls.__name__}.name must be an identifier other than 'none' and "
+                         f"'unexplained', got {name!r}")
     if name in _REGISTRY and _REGISTRY[name] is not cls:
         raise ValueError(f"register: an effect called {name!r} exists ({_REGISTRY[name].__name__})")
     missing = [r for r in cls.requires if r not in _REGISTRY]
@@ -101,12 +107,13 @@ def paper_model() -> tuple[str, ...]:
 
 
 for _cls in (DryFriction, ViscousFriction, StribeckFriction, PulleyFriction, CableElasticity, TensionStiffening,
-             Payload, SpringError, ActuationDelay, Pretension):
+             Payload, SpringError, ActuationDelay, Pretension, JointFriction, CameraDelay):
     register(_cls)
 _BUILTIN = frozenset(_REGISTRY)
 
-VOCABULARY = names() + (NONE,)
-"""The built-in names a diagnosis may report (``none``: the model explains the data)."""
+VOCABULARY = names() + (NONE, UNEXPLAINED)
+"""The built-in names a diagnosis may report (``none``: the model explains the data;
+``unexplained``: structure is left that no effect removes)."""
 
 EFFECT_TYPES = _REGISTRY
 """Name -> effect class (a live view of the registry)."""
@@ -199,8 +206,8 @@ class Effects:
         """s between commanding a force and its acting on the cables."""
         return float(sum(e.command_delay for e in self.active()))
 
-    def camera_delay(self) -> float:
-        """s by which a camera frame lags its time stamp."""
+    def camera_lag(self) -> float:
+        """s by which a camera frame lags its time stamp (``effects.camera_delay`` is the effect)."""
         return float(sum(e.camera_delay for e in self.active()))
 
     def replace(self, **kw) -> "Effects":

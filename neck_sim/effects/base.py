@@ -26,8 +26,8 @@ regressor columns, linear in the effect's magnitudes once its shape parameters a
   cable/joint or one in all, physical sign); ``design(data, shape, context)`` builds them;
 * ``shapes`` -- the nonlinear :class:`Shape` parameters (default, search grid, refinement);
 * ``requires`` -- effects that must already be in the model (Stribeck needs dry friction);
-* ``fit_delay(shape)``, ``fit_elongation_offset(shape, n_cables)`` -- effects that shift the
-  observations or the elongations instead of adding columns;
+* ``fit_delay(shape)``, ``fit_camera_shift(shape)``, ``fit_elongation_offset(shape, n_cables)`` --
+  effects that shift the observations, the camera or the elongations instead of adding columns;
 * ``to_plant(params, values, shape)`` -- the fitted result back as plant constants and an effect;
   ``when_absent(params, elastic)`` -- the plant constants when a model lacks a baseline effect.
 
@@ -103,7 +103,8 @@ def clearly_nonzero(value, sigma) -> np.ndarray:
 @dataclass(frozen=True)
 class Column:
     """A group of regressor columns: ``symbol`` (report name, ``symbol(i)`` per item, 1-based),
-    ``unit``, ``per`` = ``"cable"`` (C columns), ``"joint"`` (N) or ``"one"``; ``signed``: the
+    ``unit``, ``per`` = ``"cable"`` (C columns), ``"joint"`` (N), ``"spring"`` (2N: joint 1 left,
+    joint 1 right, ..., named ``symbol(1L)``, ``symbol(1R)``, ...) or ``"one"``; ``signed``: the
     physical value is >= 0 (a friction cannot push, a stiffness or a mass is > 0)."""
 
     symbol: str
@@ -112,12 +113,16 @@ class Column:
     signed: bool = True
 
     def __post_init__(self):
-        if self.per not in ("cable", "joint", "one"):
-            raise ValueError(f"Column.per: 'cable', 'joint' or 'one', got {self.per!r}")
+        if self.per not in ("cable", "joint", "spring", "one"):
+            raise ValueError(f"Column.per: 'cable', 'joint', 'spring' or 'one', got {self.per!r}")
 
     def names(self, n_joints: int) -> tuple[str, ...]:
-        count = {"cable": n_joints + 1, "joint": n_joints, "one": 1}[self.per]
-        return (self.symbol,) if self.per == "one" else tuple(f"{self.symbol}({i + 1})" for i in range(count))
+        if self.per == "one":
+            return (self.symbol,)
+        if self.per == "spring":
+            return tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
+        count = {"cable": n_joints + 1, "joint": n_joints}[self.per]
+        return tuple(f"{self.symbol}({i + 1})" for i in range(count))
 
 
 @dataclass(frozen=True)
@@ -192,6 +197,8 @@ class Effect:
     requires: ClassVar[tuple] = ()
     elastic_cables: ClassVar[bool] = False      # in a model, makes its cables elastic (eq 54)
     uses_tension: ClassVar[bool] = False        # columns need the tension estimate (iterated fit)
+    columns_exact: ClassVar[bool] = True        # columns x values = the plant's law exactly (False: the
+    #                                             plant's law is a MuJoCo constraint the columns smooth)
     # blind tests
     blind_magnitude: ClassVar[float | None] = None
     blind_unit: ClassVar[str] = ""              # of blind_magnitude
@@ -276,6 +283,12 @@ class Effect:
     @classmethod
     def fit_delay(cls, shape: dict) -> float:
         """Delay (s) of the commanded force this term imposes on the observations."""
+        return 0.0
+
+    @classmethod
+    def fit_camera_shift(cls, shape: dict) -> float:
+        """s by which this term says the camera lags the encoders: the fit reads the camera's
+        joint angles that much later (:meth:`identification.measured.MeasuredData.camera_shifted`)."""
         return 0.0
 
     @classmethod

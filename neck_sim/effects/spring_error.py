@@ -1,4 +1,4 @@
-"""``spring_error``: side springs stiffer or softer than nominal."""
+"""``spring_error``: side springs whose stiffness or rest length differs from nominal, one by one."""
 
 from __future__ import annotations
 
@@ -11,37 +11,57 @@ from neck_sim.analytic import side_lengths
 from neck_sim.effects.base import Column, Design, Effect, Hidden, finite, indices
 from neck_sim.params import NeckParams
 
-__all__ = ["SpringError", "spring_torque"]
+__all__ = ["SpringError", "spring_torque", "SIDES"]
+
+SIDES = ("left", "right")
+"""Order of the two side springs of a joint in per-spring arrays (index 2 (j - 1) + side)."""
 
 
 def spring_torque(alpha, params: NeckParams) -> np.ndarray:
-    """Joint torque (S, N) N m per N/m of each joint's side-spring stiffness at the poses alpha (S, N).
+    """Joint torque (S, N, 2) N m per N/m more stiffness of each side spring (left: A_i C_i, right:
+    B_i D_i, eqs 1-2) at the poses alpha (S, N): -d/dalpha of (1/2)(l - l0)^2, sign as g (eq 30).
 
-    A rest-length error is not a separate regressor: over the workspace -k (dl_l + dl_r) is nearly
-    proportional to this column (both odd in alpha).
+    A rest-length change dl0 of one spring gives k dl0 dl/dalpha: over the workspace (springs
+    stretched by l(0) - l0 = 41 mm at rest, |l - l(0)| < 15 mm) nearly proportional to this column,
+    so the fit reads it as the stiffness change dk = -k dl0 / (l(0) - l0) (the report says so).
     """
     sd = side_lengths(alpha, params)
     l0 = params.springs.rest_length
-    return (sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r
+    return np.stack([(sd.l_l - l0) * sd.dl_l, (sd.l_r - l0) * sd.dl_r], axis=-1)
+
+
+def _per_spring(name: str, v, n_springs: int | None = None) -> tuple[float, ...] | None:
+    if v is None:
+        return None
+    out = tuple(finite(f"{name}[{k}]", x) for k, x in enumerate(np.atleast_1d(v)))
+    if n_springs is not None and len(out) != n_springs:
+        raise ValueError(f"{name}: {len(out)} values for {n_springs} side springs (joint 1 left, joint 1 right, ...)")
+    return out
 
 
 @dataclass(frozen=True)
 class SpringError(Effect):
-    """Side springs differ from nominal: stiffness times ``stiffness_scale`` on ``joints`` and
-    rest length plus ``rest_length_offset`` (m, every spring: the parameter module has one rest
-    length).  Maps to ``params.springs``.
+    """Side springs differ from nominal.
+
+    Symmetric form (``params.springs``): stiffness times ``stiffness_scale`` on ``joints`` (both
+    sides), rest length plus ``rest_length_offset`` (m) on every spring.  Spring by spring:
+    ``dk`` (2N,) N/m added to each spring's stiffness and ``dl0`` (2N,) m to its rest length, in
+    the order joint 1 left, joint 1 right, joint 2 left, ...; the plant edits MuJoCo's
+    ``tendon_stiffness`` / ``tendon_lengthspring`` of ``j{i}_spring_left/right``.
     """
 
     name: ClassVar[str] = "spring_error"
-    description: ClassVar[str] = "side springs stiffer or softer than nominal"
+    description: ClassVar[str] = "a side spring stiffer, softer or longer than nominal (each spring on its own)"
     abbreviation: ClassVar[str] = "spring"            # column heads of tables
     kind: ClassVar[str] = "params"
-    columns: ClassVar[tuple] = (Column("dk", "N/m", per="joint", signed=False),)
-    blind_magnitude: ClassVar[float] = 0.5      # relative stiffness error on one joint
+    columns: ClassVar[tuple] = (Column("dk", "N/m", per="spring", signed=False),)
+    blind_magnitude: ClassVar[float] = 0.5      # relative stiffness error of one spring
     blind_unit: ClassVar[str] = "relative"
-    stiffness_scale: float = 1.2
+    stiffness_scale: float = 1.0
     rest_length_offset: float = 0.0
     joints: tuple | None = None
+    dk: tuple | None = None
+    dl0: tuple | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "stiffness_scale", finite("spring_error.stiffness_scale", self.stiffness_scale,
@@ -49,6 +69,13 @@ class SpringError(Effect):
         object.__setattr__(self, "rest_length_offset", finite("spring_error.rest_length_offset",
                                                               self.rest_length_offset))
         object.__setattr__(self, "joints", indices("spring_error.joints", self.joints))
+        object.__setattr__(self, "dk", _per_spring("spring_error.dk", self.dk))
+        object.__setattr__(self, "dl0", _per_spring("spring_error.dl0", self.dl0))
+
+    def check(self, params: NeckParams) -> None:
+        super().check(params)
+        _per_spring("spring_error.dk", self.dk, 2 * params.n_joints)
+        _per_spring("spring_error.dl0", self.dl0, 2 * params.n_joints)
 
     def apply(self, params: NeckParams) -> NeckParams:
         k = np.asarray(params.springs.stiffness, dtype=float).copy()
@@ -57,19 +84,37 @@ class SpringError(Effect):
         return params.replace(**{"springs.stiffness": tuple(k),
                                  "springs.rest_length": params.springs.rest_length + self.rest_length_offset})
 
+    def setup_mujoco(self, model, data, index) -> None:
+        ids = index.spring_tendon.reshape(-1)
+        dk = np.zeros(ids.size) if self.dk is None else np.asarray(self.dk)
+        dl0 = np.zeros(ids.size) if self.dl0 is None else np.asarray(self.dl0)
+        k = index.spring_stiffness.reshape(-1) + dk
+        if np.any(k < 0):
+            raise ValueError(f"spring_error.dk: a spring stiffness would be negative ({k.round(1).tolist()} N/m)")
+        model.tendon_stiffness[ids] = k
+        model.tendon_lengthspring[ids] = (index.spring_length.reshape(-1) + dl0)[:, None]
+
     @classmethod
     def design(cls, data, shape, context):
-        """Torque block: per joint, the torque of 1 N/m more side-spring stiffness."""
-        torque = data.cached(cls.name, lambda: spring_torque(data.alpha, data.params))
-        return Design(torque[:, :, None] * np.eye(data.n), np.zeros((data.S, data.C, data.n)))
+        """Torque block: per spring, the torque of 1 N/m more stiffness."""
+        torque = data.cached(cls.name, lambda: spring_torque(data.alpha, data.params))       # (S, N, 2)
+        S, n = data.S, data.n
+        cols = np.zeros((S, n, 2 * n))
+        for j in range(n):
+            cols[:, j, 2 * j:2 * j + 2] = torque[:, j, :]
+        return Design(cols, np.zeros((S, data.C, 2 * n)))
 
     @classmethod
     def to_plant(cls, params, values, shape):
-        k = np.asarray(params.springs.stiffness) + values["dk"]
-        return params.replace(**{"springs.stiffness": tuple(np.clip(k, 0.0, None))}), None
+        k = np.repeat(np.asarray(params.springs.stiffness, dtype=float), 2)
+        dk = np.maximum(np.asarray(values["dk"], dtype=float), -k)
+        return params, cls(dk=tuple(dk))
 
     @classmethod
     def hide(cls, params, rng, magnitude, cable, joint):
-        scale = 1.0 + magnitude * (1 if rng.random() < 0.5 else -1)
-        desc = f"side springs of joint {joint + 1} x {scale:.2f}"
-        return Hidden(params, (cls(stiffness_scale=scale, joints=(joint,)),), (), (joint,), desc, cls.name)
+        side = int(rng.integers(2))
+        k = params.springs.stiffness[joint] * magnitude * (1 if rng.random() < 0.5 else -1)
+        dk = np.zeros(2 * params.n_joints)
+        dk[2 * joint + side] = k
+        desc = f"{SIDES[side]} side spring of joint {joint + 1} {k:+.0f} N/m"
+        return Hidden(params, (cls(dk=tuple(dk)),), (), (joint,), desc, cls.name)

@@ -6,20 +6,18 @@
 
 Stages (each timed, with progress): the MJCF and its cross-validation against the analytic model;
 the §5.6 pulley indicators; the closed-loop runs (the identification trajectory under law 1 as the
-paper's identification run, the §7 control tests under laws 1-3, and Table 3's four runs), in
-parallel worker processes; the identification of §5 on the identification log (Tables 1, 2, the
-reconstruction errors, figure 8's numbers); the §5.6 simulator comparison (figure 9), in a worker
-while the diagnosis runs; the diagnosis of the identification log starting from a rigid,
+paper's identification run, the §7 control tests under laws 1-3, and Table 3's four runs), on
+the campaign executor (local worker processes, or a Dask cluster); the identification of §5 on the identification log (Tables 1, 2, the
+reconstruction errors, figure 8's numbers); the §5.6 simulator comparison (figure 9), on the
+executor while the diagnosis runs; the diagnosis of the identification log starting from a rigid,
 frictionless model (the paper's story); figure 10 rendered offscreen; then ``report.md``,
 ``results.json`` and the MCAP logs in ``--out``.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import datetime
 import math
-import multiprocessing
 import os
 import platform
 import time
@@ -42,6 +40,7 @@ class ReproduceSettings:
     quick: bool = False
     seed: int = 0
     workers: int | None = None
+    cluster: str | None = None       # Dask scheduler address; None: local worker processes
     progress: bool = True
     render: bool = True
     scale: float | None = None       # trajectory duration scale; default 0.5 with quick, else 1
@@ -49,12 +48,20 @@ class ReproduceSettings:
     def __post_init__(self):
         if self.scale is not None and not (0 < self.scale <= 4):
             raise ValueError(f"duration scale: expected a value in (0, 4], got {self.scale!r}")
+        self.executor                     # refuses bad --workers / --cluster before any work
 
     @property
     def duration_scale(self) -> float:
         if self.scale is not None:
             return float(self.scale)
         return 0.5 if self.quick else 1.0
+
+    @property
+    def executor(self):
+        """Where the closed-loop runs and the simulator comparison run (controllers.campaign)."""
+        from controllers.campaign import ExecutorSpec
+
+        return ExecutorSpec(workers=self.workers, cluster=self.cluster)
 
     @property
     def duration_note(self) -> str:
@@ -83,12 +90,12 @@ def _deg(x) -> float:
     return float(np.degrees(x))
 
 
-def _simulators_worker(log_path: str, result_state: dict, seed: int):
-    """Figure 9's simulator comparison in a worker process (re-identifies nothing: gets the values)."""
+def _simulators_worker(job):
+    """Figure 9's simulator comparison on a campaign worker (re-identifies nothing: gets the log
+    and the identified values)."""
     from identification.simulator import compare_simulators
-    from neck_sim.logs import read_log
 
-    log = read_log(log_path, topics=("motors", "camera", "reference"))
+    log, result_state, seed = job
     return compare_simulators(log, _IdentifiedValues(**result_state), law=1, seed=seed, progress=False)
 
 
@@ -144,15 +151,29 @@ def paper_runs(params, settings: ReproduceSettings, logs_dir: str) -> list:
     return specs
 
 
-def run_experiments(specs, settings: ReproduceSettings) -> dict:
-    """Run the closed-loop specs (the one executor call of the workflow); label -> RunResult."""
+def run_experiments(specs, settings: ReproduceSettings, executor=None) -> dict:
+    """Run the closed-loop specs (the one executor call of the workflow); label -> RunResult.
+
+    ``executor``: an executor already open (:func:`controllers.campaign.open_executor`), else
+    ``settings.executor`` (local worker processes, or the Dask cluster of ``settings.cluster``).
+    """
     from controllers.parallel import run_all
 
-    return dict(zip([s.label for s in specs], run_all(specs, workers=settings.workers, progress=settings.progress)))
+    where = settings.executor if executor is None else executor
+    return dict(zip([s.label for s in specs], run_all(specs, where, progress=settings.progress)))
 
 
 def reproduce(settings: ReproduceSettings) -> Reproduction:
     """Run everything; write ``report.md``, ``results.json``, the logs and figures in ``settings.out``."""
+    from controllers.campaign import open_executor
+
+    with open_executor(settings.executor) as pool:
+        return _reproduce(settings, pool)
+
+
+def _reproduce(settings: ReproduceSettings, pool) -> Reproduction:
+    """The stages, with ``pool`` (a concurrent.futures executor, or None: serially here) for the
+    closed-loop runs and the simulator comparison."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -174,7 +195,7 @@ def reproduce(settings: ReproduceSettings) -> Reproduction:
     params = default_params(3)
     st = _Stages(settings.progress)
     results: dict = {"settings": {"quick": settings.quick, "seed": settings.seed, "out": out,
-                                  "trajectories": settings.duration_note},
+                                  "trajectories": settings.duration_note, "executor": settings.executor.describe()},
                      "versions": _versions(), "started": _now()}
     sections: list[str] = []
     figures: dict[str, str] = {}
@@ -204,7 +225,7 @@ def reproduce(settings: ReproduceSettings) -> Reproduction:
     # 3. closed-loop runs ----------------------------------------------------------------------
     specs = paper_runs(params, settings, logs_dir)
     with st.stage(f"closed-loop runs ({len(specs)})"):
-        runs = run_experiments(specs, settings)
+        runs = run_experiments(specs, settings, pool)
     controls = {f"law {law}": runs[f"law {law}"] for law in (1, 2, 3)}
     t3 = {case: runs[f"table3 {case[0]} {'pulleys' if case[1] else 'no-pulleys'}"] for case in ex.TABLE3_CASES}
     results["control_tests"] = {k: v.metrics.as_dict() for k, v in controls.items()}
@@ -226,28 +247,26 @@ def reproduce(settings: ReproduceSettings) -> Reproduction:
         results["identification"]["plant_truth"] = {"f_s": list(params.friction.f_s), "k": list(params.cables.k),
                                                     "lam": list(params.cables.lam), "c_a": list(params.cables.c_a)}
 
-    # 5. simulator comparison (worker) while the diagnosis runs here ----------------------------
-    ctx = multiprocessing.get_context("fork")
-    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-        state = {"f_s": ident.f_s, "variable": ident.variable}
-        sim_future = pool.submit(_simulators_worker, id_log_path, state, settings.seed)
-        with st.stage("diagnosis from a rigid, frictionless model"):
-            diag = diagnose_log(id_log_path, model="rigid", progress=settings.progress)
-            diag_dir = os.path.join(out, "diagnosis")
-            write_report(diag, diag_dir)
-            results["diagnosis"] = diag.to_dict()
-        with st.stage("simulator comparison (section 5.6, figure 9)"):
-            try:
-                sims = sim_future.result()
-                results["simulators"] = sims.to_dict()
-                sim_text = sims.table()
-                if sims.series:
-                    from identification.plots import figure_simulator, save_figure
-                    figures["fig9_simulators.png"] = save_figure(figure_simulator(sims.series),
-                                                                 os.path.join(fig_dir, "fig9_simulators.png"))
-            except Exception as exc:      # report, do not lose the rest of the run
-                results["simulators"] = {"error": str(exc)}
-                sim_text = f"failed: {exc}"
+    # 5. simulator comparison (on the executor) while the diagnosis runs here -------------------
+    sim_job = (id_log, {"f_s": ident.f_s, "variable": ident.variable}, settings.seed)
+    sim_future = pool.submit(_simulators_worker, sim_job) if pool is not None else None
+    with st.stage("diagnosis from a rigid, frictionless model"):
+        diag = diagnose_log(id_log_path, model="rigid", progress=settings.progress)
+        diag_dir = os.path.join(out, "diagnosis")
+        write_report(diag, diag_dir)
+        results["diagnosis"] = diag.to_dict()
+    with st.stage("simulator comparison (section 5.6, figure 9)"):
+        try:
+            sims = sim_future.result() if sim_future is not None else _simulators_worker(sim_job)
+            results["simulators"] = sims.to_dict()
+            sim_text = sims.table()
+            if sims.series:
+                from identification.plots import figure_simulator, save_figure
+                figures["fig9_simulators.png"] = save_figure(figure_simulator(sims.series),
+                                                             os.path.join(fig_dir, "fig9_simulators.png"))
+        except Exception as exc:      # report, do not lose the rest of the run
+            results["simulators"] = {"error": str(exc)}
+            sim_text = f"failed: {exc}"
 
     # 6. figure 10 ------------------------------------------------------------------------------
     render_note = ""

@@ -25,10 +25,12 @@ import json
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from neck_sim.params import NeckParams, ParameterError, Routing, default_params, paper_routing, to_dict
 
 __all__ = ["LogError", "TopicSpec", "TOPICS", "TOPIC_BY_NAME", "NECK_RECORD", "RUN_RECORD",
-           "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic"]
+           "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic", "check_plausible"]
 
 
 class LogError(ValueError):
@@ -217,3 +219,97 @@ def params_from_metadata(meta: dict[str, str]) -> NeckParams:
         return default_params(n, routing).replace(**values)
     except ParameterError as exc:
         raise LogError(f"metadata record {NECK_RECORD!r}: {exc}") from None
+
+
+# -- plausibility of measured data against the ``neck`` record ------------------------------------
+# A unit mistake (ms for s, degrees for rad, mN for N) passes every structural check and gives a
+# confident wrong answer downstream, so measured topics are compared with the record's constants.
+
+RATE_FACTOR = 1.5            # median sample rate within [1/1.5, 1.5] x the declared rate
+ANGLE_MARGIN = 0.1           # rad beyond alpha_max tolerated (camera noise at the joint limit)
+_RATE_KEYS = {"motors": ("control_rate_hz", "control", "rate_hz"),
+              "camera": ("camera_rate_hz", "sensors", "camera_rate_hz")}
+_ANGLE_FIELDS = {"camera": "alpha", "reference": "alpha_d"}
+_TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
+
+
+def _rate_problem(spec: TopicSpec, t: np.ndarray, params: NeckParams) -> str | None:
+    key, group, name = _RATE_KEYS[spec.name]
+    if len(t) < 2:
+        return None
+    declared = float(getattr(getattr(params, group), name))
+    dt = float(np.median(np.diff(t)))
+    measured = 1.0 / dt
+    ratio = measured / declared
+    if 1 / RATE_FACTOR <= ratio <= RATE_FACTOR:
+        return None
+    cause = next((f"times look like {unit} (the contract wants seconds)" for scale, unit in _TIME_UNITS
+                  if scale / 3 <= ratio <= scale * 3), None)
+    if cause is None:
+        cause = (f"the record's {key} is wrong, or the topic's samples are "
+                 + ("missing (gaps)" if ratio < 1 else "duplicated or in a finer time unit"))
+    return (f"{spec.topic}: samples 0-{len(t) - 1} (t = {float(t[0]):.6g} .. {float(t[-1]):.6g}) are {dt:.4g} s apart "
+            f"(median), a rate of {measured:.4g} Hz, but the {NECK_RECORD!r} record declares {key} = "
+            f"{declared:g} Hz: {cause}")
+
+
+def _angle_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, params: NeckParams) -> str | None:
+    field_name = _ANGLE_FIELDS[spec.name]
+    alpha_max = params.geometry.alpha_max
+    limit = alpha_max + ANGLE_MARGIN
+    bad = np.abs(alpha) > limit
+    if not bad.any():
+        return None
+    i, j = (int(v) for v in np.argwhere(bad)[0])
+    worst = float(np.abs(alpha).max())
+    cause = ("angles look like degrees (the contract wants radians)" if worst <= math.degrees(limit)
+             else "these are not joint angles in radians (wrong column or units?)")
+    return (f"{spec.topic}: sample {i} (t = {float(t[i]):.6g} s): {field_name}{j + 1} = {float(alpha[i, j]):.6g} rad "
+            f"is outside the joint range |alpha| <= alpha_max = {alpha_max:.4g} rad (largest |value| {worst:.4g}): "
+            f"{cause}")
+
+
+def _force_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:
+    f_max = params.actuation.f_max
+    tol = 1e-9 * f_max
+    bad = (force < -tol) | (force > f_max + tol)
+    if not bad.any():
+        return None
+    i, j = (int(v) for v in np.argwhere(bad)[0])
+    value = float(force[i, j])
+    if value < 0:
+        cause = "a cable can only pull (sign convention or a force-sensor offset?)"
+    elif float(np.median(force)) > f_max:
+        cause = "forces look like they are in another unit (mN?) (the contract wants newtons)"
+    else:
+        cause = "spikes beyond the actuators' limit f_max"
+    return (f"{spec.topic}: sample {i} (t = {float(t[i]):.6g} s): force{j + 1} = {value:.6g} N is outside "
+            f"[0, f_max] = [0, {f_max:g}] N ({int(bad.any(axis=1).sum())} of {len(t)} samples): {cause}")
+
+
+def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
+                    accept_out_of_range_forces: bool = False) -> tuple[str, ...]:
+    """Compare a measured topic with the ``neck`` record: sample rates (motors, camera), joint
+    angles within |alpha| <= alpha_max + 0.1 rad (camera, reference), commanded forces in
+    [0, f_max] (motors).
+
+    ``fields``: ``t`` (T,) s and the topic's (T, n) arrays.  Raises LogError naming the topic, the
+    sample and the likely cause (times in ms, angles in degrees, ...).  With
+    ``accept_out_of_range_forces`` an out-of-range force is returned as a warning instead.
+    """
+    t = fields["t"]
+    problems = []
+    if spec.name in _RATE_KEYS:
+        problems.append(_rate_problem(spec, t, params))
+    if spec.name in _ANGLE_FIELDS:
+        problems.append(_angle_problem(spec, t, fields[_ANGLE_FIELDS[spec.name]], params))
+    problems = [p for p in problems if p]
+    if problems:
+        raise LogError(problems[0])
+    if spec.name == "motors":
+        force = _force_problem(spec, t, fields["force"], params)
+        if force:
+            if not accept_out_of_range_forces:
+                raise LogError(force + " (an explicit option accepts them, e.g. --accept-out-of-range-forces)")
+            return (f"accepted out-of-range forces: {force}",)
+    return ()

@@ -29,8 +29,8 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, params_from_metadata,
-                                    resolve_topic)
+from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, check_plausible,
+                                    params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
 __all__ = ["read_log", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
@@ -93,7 +93,8 @@ class Log:
     ``metadata`` is the ``neck`` record, ``params`` the NeckParams it describes (defaults for
     everything it does not hold), ``run_info`` the ``run`` record (versions, seed, command line,
     plant settings: never to be used by analyses of measured data), ``message_counts`` the number
-    of messages per topic in the whole file.
+    of messages per topic in the whole file, ``warnings`` what was accepted on request (out-of-range
+    forces): every analysis of the log must repeat them in its output.
     """
 
     path: str
@@ -108,6 +109,7 @@ class Log:
     estimate: EstimateSamples | None = None
     truth: TruthSamples | None = None
     window: tuple[float | None, float | None] = field(default=(None, None))
+    warnings: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -134,7 +136,7 @@ def _to_ns(value: float | None, name: str) -> int | None:
 
 
 def read_log(path, *, start: float | None = None, end: float | None = None, topics=None,
-             require=("motors",)) -> Log:
+             require=("motors",), accept_out_of_range_forces: bool = False) -> Log:
     """Read a contract log into numpy arrays.
 
     Args:
@@ -143,12 +145,19 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
         served from the chunk index, so a short window of a long log reads only its chunks.
       topics: short names (``"motors"``) or MCAP topics to read; None reads every contract topic
         present.  Required topics are always read.
-      require: topics that must be present (LogError naming the first one missing).
+      require: topics that must be present (LogError naming the first one missing); with a window,
+        each must have at least two samples in it.
+      accept_out_of_range_forces: keep commanded forces outside [0, f_max] (listed in
+        ``Log.warnings``) instead of refusing the log.
+
+    Measured topics are checked against the ``neck`` record (:func:`check_plausible`: sample
+    rates, joint range, force range), so a unit mistake is refused rather than analysed.
 
     Raises:
       LogError (a ValueError) naming the problem: unreadable, truncated or corrupt file, missing
       ``neck`` record or key, missing required topic, missing field, wrong array length,
-      non-finite value, t not matching log_time, time not increasing.
+      non-finite value, t not matching log_time, time not increasing, implausible values (times
+      in ms, angles in degrees, out-of-range forces), a window with no data of a required topic.
     """
     path = os.fspath(path)
     start_ns, end_ns = _to_ns(start, "start"), _to_ns(end, "end")
@@ -209,12 +218,32 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             if payloads is None:           # no message index: let the mcap reader walk the chunks
                 payloads = _collect_linear(reader, path, [s.topic for s in present], start_ns, end_ns)
 
-        samples = {}
+        samples, notes = {}, ()
         for spec in present:
             log_times, data = payloads.get(spec.topic) or _Payloads.concat([], [])
             samples[spec.name] = _decode(path, spec, n, params.n_cables, log_times, data)
+            if spec in required and (start is not None or end is not None) and len(samples[spec.name].t) < 2:
+                raise LogError(f"{path}: {_window_text(start, end)} holds {len(samples[spec.name].t)} sample(s) of "
+                               f"{spec.topic} (at least 2 needed){_span_text(summary)}")
+            fields = {f: getattr(samples[spec.name], f) for f in ("t", *spec.field_names)}
+            try:
+                notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces)
+            except LogError as exc:
+                raise LogError(f"{path}: {exc}") from None
     return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
-               attachments=attachments, message_counts=counts, window=(start, end), **samples)
+               attachments=attachments, message_counts=counts, window=(start, end), warnings=notes, **samples)
+
+
+def _window_text(start, end) -> str:
+    return f"the window start = {start} s, end = {end} s" if end is not None and start is not None else (
+        f"the window from start = {start} s" if start is not None else f"the window up to end = {end} s")
+
+
+def _span_text(summary) -> str:
+    stats = None if summary is None else summary.statistics
+    if stats is None or not stats.message_count:
+        return ""
+    return f"; the log's messages span t = {stats.message_start_time * 1e-9:.6g} .. {stats.message_end_time * 1e-9:.6g} s"
 
 
 # -- collecting payloads ---------------------------------------------------------------------------

@@ -18,6 +18,7 @@ import math
 import os
 import platform
 import sys
+import weakref
 
 import numpy as np
 import orjson
@@ -25,7 +26,7 @@ from mcap.opcode import Opcode
 from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 
-from neck_sim.atomic import discard, publish, temp_file_beside
+from neck_sim.atomic import discard, output_error, publish, temp_file_beside
 from neck_sim.jit import kernel
 from neck_sim.logs import foxglove
 from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TopicSpec, neck_metadata,
@@ -35,6 +36,7 @@ from neck_sim.params import NeckParams, default_params
 __all__ = ["LogWriter", "MJCF_ATTACHMENT"]
 
 MJCF_ATTACHMENT = "neck.xml"
+_MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 ns)
 _PENDING_ROWS = 256          # samples buffered by the per-sample methods before encoding
 _MESSAGE_HEADER = 31         # opcode (1) + record length (8) + channel, sequence, log and publish time (22)
 
@@ -153,6 +155,8 @@ class LogWriter:
         self._viz_period_ns = int(round(1e9 / visualization_rate_hz)) if visualization_rate_hz > 0 else None
         fd, self._tmp = temp_file_beside(self.path)
         self._fh = os.fdopen(fd, "wb")
+        # a writer dropped without close() (an environment never closed) leaves no temporary file
+        self._finalizer = weakref.finalize(self, _drop_file, self._fh, self._tmp)
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library=f"neck-sim {_version('neck-sim')}")
         self._channels: dict[str, int] = {}
@@ -185,14 +189,18 @@ class LogWriter:
         if self._closed:
             return
         self._closed = True
+        self._finalizer.detach()
         try:
-            for name in list(self._pending):
-                self._flush_pending(name)
-            self._write_visualization()
-            self._writer.finish()
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
+            try:
+                for name in list(self._pending):
+                    self._flush_pending(name)
+                self._write_visualization()
+                self._writer.finish()
+                self._fh.flush()
+                os.fsync(self._fh.fileno())
+                self._fh.close()
+            except OSError as exc:
+                raise output_error(self.path, exc) from None
             publish(self._tmp, self.path)
         except BaseException:
             self._discard()
@@ -205,10 +213,8 @@ class LogWriter:
             self._discard()
 
     def _discard(self) -> None:
-        try:
-            self._fh.close()
-        finally:
-            discard(self._tmp)
+        self._finalizer.detach()
+        _drop_file(self._fh, self._tmp)
 
     # -- contract topics ---------------------------------------------------------------------
     def motors(self, t: float, theta, force) -> None:
@@ -264,6 +270,9 @@ class LogWriter:
         t = float(t)
         if not (t >= 0.0 and math.isfinite(t)):
             raise ValueError(f"{spec.topic}: time t must be finite and >= 0, got {t!r}")
+        if t * 1e9 > _MAX_NS:
+            raise ValueError(f"{spec.topic}: time t = {t!r} s is beyond MCAP's nanosecond timestamps (t < 9.2e9 s); "
+                             "times are seconds since the start of the run")
         ns = int(round(t * 1e9))
         last = self._last_ns.get(spec.topic)
         if last is not None and ns <= last:
@@ -298,6 +307,8 @@ class LogWriter:
             raise ValueError(f"{spec.topic}: t must have shape (T,), got {t.shape}")
         if not np.all(np.isfinite(t) & (t >= 0)):
             raise ValueError(f"{spec.topic}: time t must be finite and >= 0")
+        if len(t) and t.max() * 1e9 > _MAX_NS:
+            raise ValueError(f"{spec.topic}: time t = {float(t.max())!r} s is beyond MCAP's nanosecond timestamps")
         lengths = self._layout(spec)[0]
         if len(fields) != len(lengths):
             raise ValueError(f"{spec.topic}: expected fields {spec.field_names}, got {len(fields)} arrays")
@@ -348,7 +359,10 @@ class LogWriter:
         out = np.empty(len(numbers) + len(ns) * (_MESSAGE_HEADER + len(pieces)), np.uint8)
         offsets = np.empty(len(ns), np.int64)
         size = _message_records(numbers, pieces, starts, ch, ns, out, offsets)
-        self._append_records(ch, out[:size], offsets, ns)
+        try:
+            self._append_records(ch, out[:size], offsets, ns)
+        except OSError as exc:                  # a full chunk is written to the file here
+            raise output_error(self.path, exc) from None
 
     def _append_records(self, ch: int, records: np.ndarray, offsets: np.ndarray, ns: np.ndarray) -> None:
         """Add encoded Message records to the writer's chunks, about ``chunk_size`` bytes at a time.
@@ -421,3 +435,12 @@ class LogWriter:
                     ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
                 self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON
                 self.counts[topic] += 1
+
+
+def _drop_file(fh, tmp: str) -> None:
+    try:
+        fh.close()
+    except OSError:
+        pass
+    finally:
+        discard(tmp)

@@ -1,0 +1,215 @@
+"""Structure left in the residuals: does anything beyond noise remain after the last finding?
+
+Pure functions of residual and feature arrays, then :func:`leftover_structure`, which applies
+them to a fitted model.  Two tests per residual channel (joint torque j, N m; cable elongation i,
+m; alpha_hat against the camera j, deg):
+
+* **correlation with the state**: the correlation rho of the cross-validated residual with each
+  state feature (motor speeds, their signs and accelerations; joint angles, speeds, their signs
+  and accelerations; tension and elongation estimates; time).  Noise is uncorrelated with the
+  state: under it, rho sqrt(n_eff) ~ N(0, 1) with n_eff the independent samples at the filter's
+  bandwidth (one per 1 / (2 f_c) s).  Significant when |z| beats a Bonferroni bound over every
+  (channel, feature) pair *and* |rho| >= ``min_rho`` (a model is never perfect: a tiny but
+  certain correlation is not an effect);
+* **whiteness at the filter's bandwidth**: the residual sampled every 1 / (2 f_c) s is white
+  under noise; its lag-one autocorrelation rho_1 sqrt(n_eff) ~ N(0, 1).  Significant under the
+  same two conditions (``min_rho_white``).
+
+The size of a structure against the noise is |rho| / sqrt(1 - rho^2): the RMS of the part that
+follows the feature over the RMS of the rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from identification.diagnosis.settings import StructureSettings
+from identification.diagnosis.statistics import effective_samples
+
+__all__ = ["StructureSettings", "Structure", "Leftover", "correlations", "lag_one", "bonferroni_z", "state_features",
+           "leftover_structure"]
+
+
+# ------------------------------------------------------------------------------ pure functions
+
+def correlations(res: np.ndarray, feats: np.ndarray) -> np.ndarray:
+    """(K, F) Pearson correlations of each residual channel (S, K) with each feature (S, F),
+    over the samples where the channel is finite (NaN: a slack cable); 0 for constant series."""
+    out = np.zeros((res.shape[1], feats.shape[1]))
+    for k in range(res.shape[1]):
+        ok = np.isfinite(res[:, k])
+        if ok.sum() < 3:
+            continue
+        r = res[ok, k] - res[ok, k].mean()
+        f = feats[ok] - feats[ok].mean(0)
+        den = np.sqrt((r @ r) * (f * f).sum(0))
+        out[k] = np.where(den > 0, (r @ f) / np.where(den > 0, den, 1.0), 0.0)
+    return out
+
+
+def lag_one(res: np.ndarray, step: int) -> np.ndarray:
+    """(K,) lag-one autocorrelation of each channel (S, K) sampled every ``step`` samples (NaN
+    samples and the pairs they break left out)."""
+    r = res[::max(int(step), 1)]
+    out = np.zeros(r.shape[1])
+    for k in range(r.shape[1]):
+        x = r[:, k] - np.nanmean(r[:, k])
+        a, b = x[:-1], x[1:]
+        ok = np.isfinite(a) & np.isfinite(b)
+        den = np.sqrt((a[ok] ** 2).sum() * (b[ok] ** 2).sum())
+        out[k] = (a[ok] @ b[ok]) / den if den > 0 else 0.0
+    return out
+
+
+def bonferroni_z(alpha: float, n_tests: int) -> float:
+    """Two-sided normal quantile at family-wise level ``alpha`` over ``n_tests`` tests."""
+    return float(stats.norm.isf(alpha / (2 * max(n_tests, 1))))
+
+
+def _sign(v: np.ndarray) -> np.ndarray:
+    """A smooth sign at a tenth of each column's RMS (a Coulomb-like feature)."""
+    scale = 0.1 * np.sqrt(np.mean(v * v, axis=0)) + 1e-300
+    return np.tanh(v / scale)
+
+
+def state_features(data, tension: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """(names, (S, F)) the state features on the slow grid of ``data`` (a MeasuredData):
+    motor speed, its sign and acceleration per cable; joint angle, speed, its sign and
+    acceleration per joint; tension (the model's eq 41 estimate) and elongation per cable; time."""
+    p = data.prep
+    C, n = data.C, data.n
+    groups = [("motor speed", data.theta_dot, C), ("sign of motor speed", _sign(data.theta_dot), C),
+              ("motor acceleration", p.theta_ddot, C), ("joint angle", data.alpha, n),
+              ("joint speed", p.alpha_dot, n), ("sign of joint speed", _sign(p.alpha_dot), n),
+              ("joint acceleration", p.alpha_ddot, n), ("tension", tension, C), ("elongation", data.x, C)]
+    names, cols = [], []
+    for what, arr, count in groups:
+        for i in range(count):
+            names.append(f"{what} {i + 1}")
+            cols.append(np.nan_to_num(arr[:, i]))
+    names.append("time")
+    cols.append(data.t - data.t[0])
+    return tuple(names), np.stack(cols, axis=1)
+
+
+# ------------------------------------------------------------------------------------ results
+
+@dataclass(frozen=True)
+class Structure:
+    """One significant structure: residual ``channel`` (e.g. "joint torque 2", "cable 4",
+    "alpha_hat 1"), the ``feature`` it follows ("whiteness": correlated in time at the filter's
+    bandwidth), correlation ``rho``, its ``z`` against noise, ``size`` = RMS of the structure /
+    RMS of the rest, and the residual RMS with its ``unit``."""
+
+    channel: str
+    feature: str
+    rho: float
+    z: float
+    size: float
+    rms: float
+    unit: str
+
+    def to_dict(self) -> dict:
+        return {"channel": self.channel, "feature": self.feature, "rho": self.rho, "z": self.z,
+                "size_vs_noise": self.size, "residual_rms": self.rms, "unit": self.unit}
+
+    def describe(self) -> str:
+        follows = "is correlated in time beyond noise" if self.feature == "whiteness" else f"follows {self.feature}"
+        return (f"{self.channel} residual {follows} (rho = {self.rho:+.2f}, z = {self.z:.1f}; structure "
+                f"{self.size:.2f} x the rest, residual RMS {self.rms:.3g} {self.unit})")
+
+
+@dataclass(frozen=True, eq=False)
+class Leftover:
+    """The structure tests on one model's residuals: every significant :class:`Structure`
+    (strongest first), the thresholds used, and for plots the residual and feature series of the
+    strongest (``t``, ``residual``, ``feature``; None when nothing is left)."""
+
+    found: tuple
+    z_threshold: float
+    n_tests: int
+    settings: StructureSettings
+    plot: tuple | None = field(default=None, repr=False)
+
+    @property
+    def significant(self) -> bool:
+        return bool(self.found)
+
+    def channels(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(s.channel for s in self.found))
+
+    def to_dict(self) -> dict:
+        return {"significant": self.significant, "structures": [s.to_dict() for s in self.found[:10]],
+                "n_structures": len(self.found), "z_threshold": self.z_threshold, "n_tests": self.n_tests,
+                "min_rho": self.settings.min_rho, "min_rho_white": self.settings.min_rho_white}
+
+
+def _channel_names(n: int, C: int) -> tuple[list[str], list[str]]:
+    names = [f"joint torque {j + 1}" for j in range(n)] + [f"cable {i + 1}" for i in range(C)]
+    units = ["N m"] * n + ["m"] * C
+    return names, units
+
+
+def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
+                       settings: StructureSettings | None = None) -> Leftover:
+    """The structure tests on the cross-validated residuals (S, N + C) of ``fit`` on ``data``
+    (and on its alpha_hat errors against the camera, an :class:`~identification.diagnosis.gains.
+    AlphaHatErrors`, when given)."""
+    s = settings or StructureSettings()
+    shift = sum(t.effect.fit_camera_shift(dict(t.shape)) for t in fit.model.terms)
+    d = data.camera_shifted(shift)
+    names, feats = state_features(d, fit.tension_hat)
+    ch_names, ch_units = _channel_names(d.n, d.C)
+    res = np.asarray(cv_residuals, dtype=float)
+    fc, rate = d.prep.cutoffs["common"].hz, d.prep.rate_hz
+    step = max(int(round(rate / (2 * fc))), 1)
+    n_eff = np.array([effective_samples(int(np.isfinite(res[:, k]).sum()), fc, rate) for k in range(res.shape[1])])
+    rho = correlations(res, feats)
+    white = lag_one(res, step)
+    series = [(res, d.t, feats)]
+    if s.alpha_hat and alpha_hat is not None and alpha_hat.t.size > 10:
+        # alpha_hat errors at the camera frames: features interpolated there; the errors are
+        # integrated (eq 35) and smooth, one independent sample per 1 / (2 f_c) s as well
+        tc = alpha_hat.t
+        fa = np.stack([np.interp(tc, d.t, feats[:, i]) for i in range(feats.shape[1])], axis=1)
+        err = alpha_hat.error_deg
+        rate_c = 1.0 / float(np.median(np.diff(tc)))
+        rho = np.concatenate([rho, correlations(err, fa)])
+        white = np.concatenate([white, lag_one(err, max(int(round(rate_c / (2 * fc))), 1))])
+        n_eff = np.concatenate([n_eff, [effective_samples(tc.size, fc, rate_c)] * err.shape[1]])
+        ch_names += [f"alpha_hat {j + 1}" for j in range(err.shape[1])]
+        ch_units += ["deg"] * err.shape[1]
+        series.append((err, tc, fa))
+    K = rho.shape[0]
+    n_tests = K * (feats.shape[1] + 1)
+    zc = bonferroni_z(s.alpha, n_tests)
+    z = rho * np.sqrt(n_eff)[:, None]
+    zw = white * np.sqrt(np.maximum(n_eff // 1, 1))
+    all_res = [res[:, k] for k in range(res.shape[1])] + ([series[1][0][:, j] for j in range(series[1][0].shape[1])]
+                                                          if len(series) > 1 else [])
+    found = []
+    for k in range(K):
+        rms = float(np.sqrt(np.nanmean(all_res[k] ** 2)))
+        for f in range(feats.shape[1]):
+            if abs(z[k, f]) > zc and abs(rho[k, f]) >= s.min_rho:
+                r = rho[k, f]
+                found.append(Structure(ch_names[k], names[f], float(r), float(abs(z[k, f])),
+                                       float(abs(r) / np.sqrt(max(1 - r * r, 1e-12))), rms, ch_units[k]))
+        if zw[k] > zc and white[k] >= s.min_rho_white:
+            r = white[k]
+            found.append(Structure(ch_names[k], "whiteness", float(r), float(zw[k]),
+                                   float(abs(r) / np.sqrt(max(1 - r * r, 1e-12))), rms, ch_units[k]))
+    found.sort(key=lambda x: -abs(x.rho))
+    plot = None
+    feature_found = [x for x in found if x.feature != "whiteness"]
+    if feature_found:
+        top = feature_found[0]
+        k, f = ch_names.index(top.channel), names.index(top.feature)
+        block = 0 if k < res.shape[1] else 1
+        arr, t, fa = series[block]
+        col = k if block == 0 else k - res.shape[1]
+        plot = (top, t, arr[:, col], fa[:, f])
+    return Leftover(tuple(found), zc, n_tests, s, plot)

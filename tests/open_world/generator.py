@@ -1,0 +1,271 @@
+"""Blind measured-data logs whose hidden effects share no code with the diagnosis' candidates.
+
+The generator never imports :mod:`neck_sim.effects`, :mod:`identification.candidates` or
+:mod:`identification.diagnosis`: it builds a *nominal* :class:`neck_sim.plant.Plant` (no effects)
+and hides each effect by another mechanism than the candidate's:
+
+* MuJoCo model fields of the compiled plant (``plant.model``): motor-slide ``dof_damping`` (viscous friction; the plant
+  zeroes the motor dofs' damping at construction and applies eq 37 in its callback, so a damping
+  set afterwards adds to it), hinge ``dof_frictionloss`` (joint friction), a side spring
+  tendon's ``tendon_stiffness`` / ``tendon_lengthspring`` (spring error), the head body's
+  ``body_mass`` / ``body_inertia`` / ``body_ipos`` with the payload off the bar's middle;
+* formulas written here: a tanh Coulomb law and an exponential Stribeck law on the commanded
+  force (MuJoCo's ``dof_frictionloss`` on a motor slide is no Coulomb friction: its soft
+  constraint with the slide's 16 kg reflected inertia acts as a damper below about 1 cm/s), a command FIFO
+  (actuation delay), camera frames restamped late (camera delay), an encoder offset
+  (pretension: the encoders were zeroed with the cables stretched);
+* effects the vocabulary has no name for: gear backlash (a play operator between motor and
+  drum), cable creep (the cables lengthen in proportion to the integral of their tension), a
+  camera scale error.
+
+Each :class:`Spec` says what a correct diagnosis names (``expect``), where (0-based cable,
+joint, spring) and the magnitude to compare with, in the candidate's parameter units.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+import mujoco
+import numpy as np
+
+from identification.excitation import paper_amplitudes, predict_run, sequences_trajectory
+from neck_sim.logs import LogWriter
+from neck_sim.params import NeckParams, default_params
+from neck_sim.plant import Plant
+
+UNEXPLAINED = "unexplained"     # the vocabulary's name, written here (no import of neck_sim.effects)
+
+
+@dataclass
+class Hooks:
+    """What one hidden effect does to a simulation: ``edit(plant)`` on the compiled model after
+    reset; ``force(k, f_cmd, plant) -> f_applied`` (N) on the way to the plant;
+    ``encoder(theta_true) -> theta_logged``; ``camera(t, alpha) -> (t_stamp, alpha_logged)``."""
+
+    edit: Callable | None = None
+    force: Callable | None = None
+    encoder: Callable | None = None
+    camera: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A blind case: ``name`` of the hidden form, ``expect`` the vocabulary name a correct
+    diagnosis gives (``unexplained`` for effects outside it), ``model`` the baseline model the
+    diagnosis starts from, ``magnitude`` in the candidate's units with ``symbol`` the fitted
+    parameter to compare (``None``: no magnitude check), ``where`` the 0-based cable/joint."""
+
+    name: str
+    expect: str
+    magnitude: float
+    hooks: Hooks = field(compare=False, repr=False)
+    params: NeckParams = field(compare=False, repr=False)
+    model: str = "paper"
+    symbol: str | None = None
+    cables: tuple = ()
+    joints: tuple = ()
+    description: str = ""
+
+
+# --------------------------------------------------------------------------------- mechanisms
+
+def _ratio(p: NeckParams) -> float:
+    return p.actuation.R / p.actuation.r_d          # theta (rad) per metre of cable on the drum
+
+
+def _by_name(model, kind, name) -> int:
+    i = mujoco.mj_name2id(model, kind, name)
+    if i < 0:
+        raise ValueError(f"generator: the plant has no {name!r}")
+    return i
+
+
+def _dof(model, joint: str) -> int:
+    return int(model.jnt_dofadr[_by_name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)])
+
+
+def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3) -> Spec:
+    """The blind case ``name`` at ``level`` x its test magnitude (times a factor in [0.8, 1.25]),
+    with the affected cable / joint / spring side drawn from ``seed``."""
+    rng = np.random.default_rng([seed, sum(map(ord, name))])
+    p = default_params(n_joints)
+    factor = level * float(np.exp(rng.uniform(np.log(0.8), np.log(1.25))))
+    cable, joint, side = int(rng.integers(p.n_cables)), int(rng.integers(n_joints)), int(rng.integers(2))
+    ratio = _ratio(p)
+    no_dry = p.replace(**{"friction.f_s": (0.0,) * p.n_cables})
+    if name == "none":
+        return Spec(name, "none", 0.0, Hooks(), p, description="no hidden effect (noise only)")
+    if name == "dry_friction":                     # tanh Coulomb law on the commanded force, written here
+        F, w0 = 10.0 * factor, 0.3
+
+        def force(k, f, pl):
+            out = f.copy()
+            out[cable] -= F * np.tanh(pl.truth().theta_dot[cable] / w0)
+            return out
+        return Spec(name, "dry_friction", F, Hooks(force=force), no_dry, "cable_elasticity,tension_stiffening",
+                    f"f_s({cable + 1})", (cable,), (), f"tanh Coulomb friction {F:.1f} N on cable {cable + 1}")
+    if name == "viscous_friction":                 # MuJoCo damping on the motor slide
+        c_v = 0.15 * factor
+
+        def edit(pl):
+            pl.model.dof_damping[_dof(pl.model, f"motor{cable + 1}")] = c_v * ratio     # N s/m of cable
+        return Spec(name, "viscous_friction", c_v, Hooks(edit=edit), p, symbol=f"c_v({cable + 1})", cables=(cable,),
+                    description=f"motor-slide damping {c_v * ratio:.0f} N s/m (c_v {c_v:.3f} N s/rad) on cable "
+                                f"{cable + 1}")
+    if name == "stribeck_friction":                # exponential Stribeck curve, written here
+        extra, v_s = 8.0 * factor, 4.0
+
+        def force(k, f, pl):
+            w = pl.truth().theta_dot
+            out = f.copy()
+            out[cable] -= extra * np.exp(-(w[cable] / v_s) ** 2) * np.tanh(w[cable] / 0.3)
+            return out
+        return Spec(name, "stribeck_friction", extra, Hooks(force=force), p, cables=(cable,),
+                    description=f"exponential Stribeck bump {extra:.1f} N (v_s {v_s} rad/s) on cable {cable + 1}")
+    if name == "joint_friction":                   # MuJoCo friction on the X-joint's hinges
+        tau = 0.04 * factor
+
+        def edit(pl):
+            for h in "ABD":
+                pl.model.dof_frictionloss[_dof(pl.model, f"j{joint + 1}_{h}")] = tau
+        return Spec(name, "joint_friction", tau, Hooks(edit=edit), p, symbol=f"tau_j({joint + 1})", joints=(joint,),
+                    description=f"hinge frictionloss {tau:.3f} N m in joint {joint + 1}")
+    if name == "spring_error":                     # one side spring's tendon stiffness
+        k0 = p.springs.stiffness[joint]
+        dk = k0 * 0.5 * factor * (1 if rng.random() < 0.5 else -1)
+        tendon = f"j{joint + 1}_spring_{('left', 'right')[side]}"
+
+        def edit(pl):
+            i = _by_name(pl.model, mujoco.mjtObj.mjOBJ_TENDON, tendon)
+            pl.model.tendon_stiffness[i] = k0 + dk
+        return Spec(name, "spring_error", dk, Hooks(edit=edit), p, symbol=f"dk({joint + 1}{'LR'[side]})",
+                    joints=(joint,), description=f"{tendon} stiffness {k0:.0f} -> {k0 + dk:.0f} N/m")
+    if name == "payload":                          # a body with its own inertia, off the bar's middle
+        m = 0.08 * factor
+        offset = np.array([0.006, 0.004, 0.0])     # m from the bar's middle (along it, up the neck)
+
+        def edit(pl):
+            b = _by_name(pl.model, mujoco.mjtObj.mjOBJ_BODY, f"j{n_joints}_top")
+            M0, c0 = float(pl.model.body_mass[b]), pl.model.body_ipos[b].copy()
+            c = (M0 * c0 + m * (c0 + offset)) / (M0 + m)
+            # parallel axis: the bar's own inertia and the payload's (a 2 cm cube) about the new centre
+            d0, d1 = c0 - c, c0 + offset - c
+            cube = m * 0.02 ** 2 / 6
+            I = pl.model.body_inertia[b] + cube
+            I = I + M0 * (d0 @ d0 - d0 ** 2) + m * (d1 @ d1 - d1 ** 2)
+            pl.model.body_mass[b], pl.model.body_ipos[b], pl.model.body_inertia[b] = M0 + m, c, I
+        return Spec(name, "payload", m, Hooks(edit=edit), p, symbol="payload",
+                    description=f"{1e3 * m:.0f} g body 6 mm off the head bar's middle")
+    if name == "actuation_delay":                  # a FIFO of commands
+        d = 0.010 * factor
+        lag = max(int(round(d * p.control.rate_hz)), 1)
+        fifo: list = []
+
+        def force(k, f, pl):
+            fifo.append(f.copy())
+            return fifo[max(len(fifo) - 1 - lag, 0)]
+        return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p, symbol="delay",
+                    description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)")
+    if name == "camera_delay":                     # frames restamped late
+        d = 0.033 * factor
+        return Spec(name, "camera_delay", d, Hooks(camera=lambda t, a: (t + d, a)), p, symbol="delay",
+                    description=f"camera frames restamped {1e3 * d:.0f} ms late")
+    if name == "pretension":                       # encoders zeroed with the cable stretched
+        x0 = 0.003 * factor
+        cable = cable % n_joints                    # a right cable: the long left one is the README's limit
+        offset = np.zeros(p.n_cables)
+        offset[cable] = x0 * ratio
+
+        def encoder(theta):
+            return theta - offset
+        return Spec(name, "pretension", x0, Hooks(encoder=encoder), p, symbol=f"x0({cable + 1})", cables=(cable,),
+                    description=f"encoder {cable + 1} zeroed {1e3 * x0:.1f} mm of cable early")
+    if name == "backlash":                         # out of vocabulary: play between motor and drum
+        play = 0.5e-3 * factor * ratio            # rad at the motor shaft (0.5 mm of cable)
+        state = {}
+
+        def encoder(theta):
+            prev = state.get("enc", theta.copy())
+            enc = np.clip(prev, theta - play / 2, theta + play / 2)
+            state["enc"] = enc
+            return enc
+        return Spec(name, UNEXPLAINED, play, Hooks(encoder=encoder), p,
+                    description=f"gear backlash {1e3 * play / ratio:.2f} mm of cable on every motor")
+    if name == "creep":                            # out of vocabulary: cables lengthen under load
+        beta = 4e-6 * factor                        # m of creep per N s of tension (about 2 mm per log)
+        state = {"x": np.zeros(p.n_cables)}
+
+        def force(k, f, pl):
+            state["x"] += beta * np.maximum(pl.truth().tension, 0.0) * dt_c
+            return f
+
+        def encoder(theta):                         # the drum turns that much further for the same stretch
+            return theta + state["x"] * ratio
+        dt_c = 1.0 / p.control.rate_hz
+        return Spec(name, UNEXPLAINED, beta, Hooks(force=force, encoder=encoder), p,
+                    description=f"cable creep {beta * 1e6:.0f} um per N s of tension")
+    if name == "camera_scale":                     # out of vocabulary: camera calibration error
+        s = 1.0 + 0.08 * factor
+        return Spec(name, UNEXPLAINED, s - 1, Hooks(camera=lambda t, a: (t, s * a)), p,
+                    description=f"camera angles x {s:.3f}")
+    raise ValueError(f"generator: unknown case {name!r} (known: {', '.join(CASES)})")
+
+
+CASES = ("none", "dry_friction", "viscous_friction", "stribeck_friction", "joint_friction", "spring_error", "payload",
+         "actuation_delay", "camera_delay", "pretension", "backlash", "creep", "camera_scale")
+OUT_OF_VOCABULARY = ("creep", "camera_scale")
+"""The out-of-vocabulary effects the blind tests require ``unexplained`` for (backlash: see the
+README's detection table, it is read as an actuation delay)."""
+
+
+# ------------------------------------------------------------------------------------ simulation
+
+def trajectory(params: NeckParams, sequences: int = 2, move_time: float = 0.8, hold_time: float = 0.2):
+    """The identification shape (§5.2.2), shortened: ``sequences`` of six cycloidal moves."""
+    amps = paper_amplitudes(params.n_joints)[:sequences]
+    return sequences_trajectory(amps, move_time, hold_time, name=f"open-world ({sequences} sequences)")
+
+
+def simulate(path, spec: Spec, seed: int, *, sequences: int = 2) -> str:
+    """Drive a nominal plant with ``spec``'s hidden effect along :func:`trajectory` with a motor
+    servo around the nominal feed-forward, write the measured topics (atomic).  Returns ``path``."""
+    p = spec.params
+    traj = trajectory(p, sequences)
+    rate = p.control.rate_hz
+    dt = 1.0 / rate
+    steps = int(round(traj.duration * rate)) + 1
+    t = np.arange(steps) * dt
+    s = traj.sample(t)
+    ff = predict_run(s.alpha, s.alpha_dot, s.alpha_ddot, t, default_params(p.n_joints))
+    plant = Plant(p, seed=seed)
+    plant.reset(alpha0=s.alpha[0])
+    h = spec.hooks
+    if h.edit is not None:
+        h.edit(plant)
+    k_p, k_d, tau = 3.0, 0.25, 0.01
+    a = dt / (tau + dt)
+    read = h.encoder or (lambda th: th)
+    theta_prev = read(plant.encoders())
+    speed = np.zeros(p.n_cables)
+    theta_log, force_log, frames = np.empty((steps, p.n_cables)), np.empty((steps, p.n_cables)), []
+    for k in range(steps):
+        theta = read(plant.encoders())
+        speed += a * ((theta - theta_prev) / dt - speed)
+        theta_prev = theta
+        f = np.clip(ff.force[k] + k_p * (ff.theta[k] - theta) + k_d * (ff.theta_dot[k] - speed),
+                    p.actuation.f_min, p.actuation.f_max)
+        theta_log[k], force_log[k] = theta, f
+        plant.step(h.force(k, f, plant) if h.force is not None else f)
+        frame = plant.camera_frame()
+        if frame is not None:
+            frames.append(h.camera(*frame) if h.camera is not None else frame)
+    with LogWriter(path, p, run_info={"generator": "tests/open_world/generator.py", "hidden": spec.description}) as w:
+        for k in range(steps):
+            w.motors(float(t[k]), theta_log[k], force_log[k])
+        for tc, ac in frames:
+            if tc <= t[-1]:
+                w.camera(float(tc), ac)
+    return os.fspath(path)

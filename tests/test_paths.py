@@ -1,0 +1,285 @@
+"""Issue 14, input/output side: no command writes over an input or fails after the work on an
+output path it could have checked first; user errors are one line with exit status 2; measured
+data are checked against the ``neck`` record (units); Ctrl-C, SIGTERM and internal errors end in
+one line with the temporary files gone.  Every command runs in-process through ``main``."""
+
+from __future__ import annotations
+
+import gc
+import json
+import math
+import os
+import signal
+
+import numpy as np
+import pytest
+from test_logs_fixtures import synthetic_arrays, write_arrays
+
+from neck_sim.atomic import TEMP_PREFIX, atomic_write_json
+from neck_sim.cli import main
+from neck_sim.logs import LogError, LogWriter, read_log
+from neck_sim.params import default_params, save
+
+
+def run_cli(argv, capsys):
+    """(exit status, stdout, stderr) of ``neck-sim argv`` run in this process."""
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def snapshot(folder) -> dict:
+    """name -> bytes of every file in ``folder`` (hidden temporary files included)."""
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+@pytest.fixture
+def log(tmp_path):
+    """A short, plausible measured log (0.2 s of motors at 500 Hz, camera at 30 Hz)."""
+    p = default_params(3)
+    arrays = synthetic_arrays(p, seconds=0.2, seed=3)
+    path = tmp_path / "run.mcap"
+    write_arrays(path, p, {k: arrays[k] for k in ("motors", "camera")})
+    return path
+
+
+def write_log(path, arrays, params=None):
+    write_arrays(path, params or default_params(3), arrays)
+    return path
+
+
+def motors_csv(path, t, forces=None):
+    forces = np.full((len(t), 4), 10.0) if forces is None else forces
+    rows = ["t,theta1,theta2,theta3,theta4,force1,force2,force3,force4"]
+    rows += [",".join(repr(float(v)) for v in (ti, 0.0, 0.0, 0.0, 0.0, *f)) for ti, f in zip(t, forces)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+# -- item 1: nothing overwrites an input; outputs checked before the work -------------------------
+
+@pytest.mark.parametrize("case", ["replay", "identify", "simulate", "import", "params", "diagnose", "symlink"])
+def test_an_output_equal_to_an_input_is_refused_before_any_work(case, tmp_path, log, capsys):
+    toml = tmp_path / "p.toml"
+    save(default_params(3), toml)
+    csv = motors_csv(tmp_path / "m.csv", np.arange(10) / 500)
+    os.symlink(log, tmp_path / "link.mcap")
+    argv, victim = {
+        "replay": (["replay", log, "-o", log], log),
+        "identify": (["identify", log, "--json", log], log),
+        "simulate": (["simulate", "--params", toml, "--json", toml], toml),
+        "import": (["import", "--motors", csv, "-o", csv], csv),
+        "params": (["params", "--load", toml, "-o", toml], toml),
+        "diagnose": (["diagnose", log, "--extended", log], log),
+        "symlink": (["replay", log, "--json", tmp_path / "link.mcap"], log),
+    }[case]
+    before = snapshot(tmp_path)
+    code, out, err = run_cli(argv, capsys)
+    assert code == 2
+    assert "refusing to write over an input" in err and str(victim) in err and len(err.splitlines()) == 1
+    assert snapshot(tmp_path) == before
+
+
+def test_two_outputs_on_one_path_are_refused(tmp_path, log, capsys):
+    js = tmp_path / "d.json"
+    code, _, err = run_cli(["diagnose", log, "--json", js, "--extended", js], capsys)
+    assert code == 2 and "--extended" in err and "its own path" in err
+
+
+@pytest.mark.parametrize("problem", ["directory", "missing folder", "folder is a file"])
+def test_unwritable_output_paths_are_refused_before_the_computation(problem, tmp_path, log, capsys, monkeypatch):
+    import neck_sim.replay
+
+    def no_work(*a, **k):
+        raise AssertionError("the replay ran before the output path was checked")
+
+    monkeypatch.setattr(neck_sim.replay, "replay", no_work)
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("x")
+    out = {"directory": tmp_path / "adir", "missing folder": tmp_path / "nope" / "r.mcap",
+           "folder is a file": tmp_path / "afile" / "r.mcap"}[problem]
+    code, _, err = run_cli(["replay", log, "-o", out], capsys)
+    assert code == 2 and f"-o {out}:" in err
+    assert {"directory": "is a directory", "missing folder": "does not exist",
+            "folder is a file": "is not a directory"}[problem] in err
+
+
+def test_write_errors_name_the_users_path_not_the_temporary_file(tmp_path):
+    target = tmp_path / "result.json"
+    target.mkdir()                      # os.replace over a directory fails
+    with pytest.raises(OSError) as info:
+        atomic_write_json(target, {"a": 1})
+    assert str(info.value) == f"cannot write {target}: it is a directory"
+    w = LogWriter(target, default_params(3))
+    w.motors(0.0, np.zeros(4), np.ones(4))
+    with pytest.raises(OSError) as info:
+        w.close()
+    assert str(target) in str(info.value) and TEMP_PREFIX not in str(info.value)
+    assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
+
+
+# -- item 6: option values name the option ---------------------------------------------------------
+
+@pytest.mark.parametrize("argv, option", [
+    (["pulleys", "--seed", "-1"], "--seed"),
+    (["simulate", "--seed", "-1"], "--seed"),
+    (["diagnose", "x.mcap", "--alpha", "2"], "--alpha"),
+    (["identify", "x.mcap", "--start", "-3"], "--start"),
+    (["crossval", "--samples", "0"], "--samples"),
+])
+def test_bad_option_values_name_the_option(argv, option, capsys):
+    code, _, err = run_cli(argv, capsys)
+    assert code == 2 and f"argument {option}: must be" in err
+
+
+def test_a_start_past_the_end_of_the_log_says_so(log, capsys):
+    code, _, err = run_cli(["identify", log, "--start", "100"], capsys)
+    assert code == 2
+    assert "start = 100" in err and "/neck/motors" in err and "span t = 0 .. 0.198 s" in err
+
+
+def test_shift_time_prints_a_signed_shift(tmp_path, capsys):
+    csv = motors_csv(tmp_path / "m.csv", -0.9665 + np.arange(20) / 500)
+    code, out, _ = run_cli(["import", "--motors", csv, "--shift-time", "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 0 and "times shifted by +0.966500 s" in out
+
+
+def test_times_beyond_mcap_range_are_a_clear_error(tmp_path, capsys):
+    csv = motors_csv(tmp_path / "m.csv", 2e10 + np.arange(20) / 500)
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 2 and str(csv) in err and "--shift-time" in err and "9.2e9" in err
+    assert not (tmp_path / "o.mcap").exists()
+    code, _, _ = run_cli(["import", "--motors", csv, "--shift-time", "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 0 and read_log(tmp_path / "o.mcap").motors.t.size == 20
+    with LogWriter(tmp_path / "w.mcap") as w, pytest.raises(ValueError, match="nanosecond timestamps"):
+        w.motors(2e10, np.zeros(4), np.ones(4))
+
+
+def test_a_non_utf8_csv_names_its_file(tmp_path, capsys):
+    csv = tmp_path / "m.csv"
+    motors_csv(csv, np.arange(5) / 500)
+    csv.write_bytes(csv.read_bytes().replace(b"theta2", b"th\xe9ta2"))
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 2 and str(csv) in err and "not UTF-8" in err and "0xe9" in err
+
+
+# -- item 4: Ctrl-C, SIGTERM and internal errors ---------------------------------------------------
+
+@pytest.mark.parametrize("how, status, word", [("ctrl-c", 130, "interrupted"), ("sigterm", 143, "terminated"),
+                                               ("bug", 70, "internal error")])
+def test_interruptions_and_bugs_end_in_one_line_and_leave_no_temporary_file(how, status, word, tmp_path, capsys,
+                                                                              monkeypatch):
+    import neck_sim.logs.writer as writer
+
+    calls = []
+    original = writer.LogWriter.motors
+
+    def motors(self, *a):
+        calls.append(1)
+        if len(calls) == 10:
+            if how == "ctrl-c":
+                raise KeyboardInterrupt
+            if how == "sigterm":
+                os.kill(os.getpid(), signal.SIGTERM)
+            else:
+                raise TypeError("a bug")
+        return original(self, *a)
+
+    monkeypatch.setattr(writer.LogWriter, "motors", motors)
+    csv = motors_csv(tmp_path / "m.csv", np.arange(50) / 500)
+    before = signal.getsignal(signal.SIGTERM)
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    assert code == status and word in err and len(err.strip().splitlines()) == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["m.csv"]
+    assert signal.getsignal(signal.SIGTERM) is before
+    if how == "bug":
+        trace = err.split("written to ")[1].strip().rstrip(")")
+        assert "Traceback" in open(trace).read() and "TypeError: a bug" in open(trace).read()
+        os.unlink(trace)
+
+
+# -- item 5: temporary files -----------------------------------------------------------------------
+
+def test_an_environment_dropped_without_close_leaves_no_temporary_file(tmp_path):
+    from neck_sim import env as neck_env
+
+    env = neck_env.load(seed=1, time_limit=0.1, log_path=str(tmp_path / "ep.mcap"))
+    env.reset()
+    for _ in range(3):
+        env.step(np.full(4, 10.0))
+    assert any(p.name.startswith(TEMP_PREFIX) for p in tmp_path.iterdir())
+    del env
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- item 2: plausibility against the neck record --------------------------------------------------
+
+def _measured(seconds=0.2, seed=3):
+    a = synthetic_arrays(default_params(3), seconds=seconds, seed=seed)
+    return {k: dict(a[k]) for k in ("motors", "camera")}
+
+
+@pytest.mark.parametrize("unit, scale", [("milliseconds", 1e3), ("microseconds", 1e6)])
+def test_times_in_another_unit_are_refused_naming_the_unit(unit, scale, tmp_path, capsys):
+    a = _measured()
+    for topic in a:
+        a[topic]["t"] = a[topic]["t"] * scale
+    path = write_log(tmp_path / "ms.mcap", a)
+    code, _, err = run_cli(["identify", path], capsys)
+    assert code == 2 and "/neck/motors" in err and f"times look like {unit}" in err and "control_rate_hz = 500" in err
+    csv = motors_csv(tmp_path / "m.csv", np.arange(20) / 500 * scale)
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 2 and str(csv) in err and f"times look like {unit}" in err
+
+
+def test_a_camera_at_the_wrong_rate_is_refused():
+    p = default_params(3)
+    a = _measured(seconds=1.0)
+    a["camera"]["t"] = a["camera"]["t"] / 2         # 60 frames per second against the declared 30
+    with pytest.raises(LogError, match="/neck/camera.*camera_rate_hz = 30"):
+        from neck_sim.logs.contract import TOPIC_BY_NAME, check_plausible
+        check_plausible(TOPIC_BY_NAME["camera"], a["camera"], p)
+
+
+def test_camera_angles_in_degrees_are_refused(tmp_path, capsys):
+    a = _measured()
+    a["camera"]["alpha"] = np.degrees(a["camera"]["alpha"])
+    path = write_log(tmp_path / "deg.mcap", a)
+    code, _, err = run_cli(["diagnose", path], capsys)
+    assert code == 2 and "/neck/camera" in err and "angles look like degrees" in err and "alpha_max" in err
+
+
+@pytest.mark.parametrize("kind", ["negative", "spike"])
+def test_out_of_range_forces_are_refused_or_accepted_and_reported(kind, tmp_path, capsys):
+    a = _measured()
+    force = a["motors"]["force"]
+    k = 37
+    force[k, 2] = -5.0 if kind == "negative" else 1e6
+    path = write_log(tmp_path / "f.mcap", a)
+    code, _, err = run_cli(["identify", path], capsys)
+    assert code == 2 and f"sample {k}" in err and "force3" in err and "--accept-out-of-range-forces" in err
+    log = read_log(path, accept_out_of_range_forces=True)
+    assert len(log.warnings) == 1 and f"sample {k}" in log.warnings[0]
+    assert log.motors.force[k, 2] == force[k, 2]
+
+
+def test_replay_says_when_the_plant_clips_logged_forces(tmp_path, capsys):
+    a = _measured(seconds=0.1)
+    a["motors"]["force"][[5, 9], 1] = [-3.0, 250.0]
+    path = write_log(tmp_path / "f.mcap", a)
+    js = tmp_path / "r.json"
+    code, out, _ = run_cli(["replay", path, "--no-output", "--no-progress", "--json", js,
+                            "--accept-out-of-range-forces"], capsys)
+    assert code == 0
+    notes = json.loads(js.read_text())["notes"]
+    clip = [n for n in notes if "clipped" in n]
+    assert len(clip) == 1 and "2 of 50" in clip[0] and "largest excess 150 N" in clip[0] and clip[0] in out
+    assert any("accepted out-of-range forces" in n for n in notes)
+
+
+def test_plausible_logs_and_angles_near_the_joint_limit_pass(tmp_path):
+    a = _measured()
+    a["camera"]["alpha"][:, 0] = math.pi / 2 + 0.05      # camera noise just beyond the joint limit
+    log = read_log(write_log(tmp_path / "ok.mcap", a))
+    assert log.warnings == () and log.camera.alpha[0, 0] == a["camera"]["alpha"][0, 0]
