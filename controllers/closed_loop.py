@@ -229,7 +229,7 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
         ("t", ()), ("theta", (m,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (m,)),
         ("elongation", (m,)), ("loop_gap", ()))} for _ in range(K)]
     columns = output_slices(n, m)
-    outs = np.zeros((K, steps, 4 * n + 3 * m))       # the controllers write their rows (output_slices)
+    outs = np.zeros((K, steps, max(sl.stop for sl in columns.values())))   # rows of output_slices
     theta = np.empty((K, m))
     cameras = [([], []) for _ in range(K)]
     errors: list = [None] * K

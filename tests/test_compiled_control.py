@@ -148,7 +148,8 @@ def test_lockstep_runs_equal_single_runs():
     batch = run_lockstep([Plant(pp, seed=s) for pp, s, _ in cases],
                          [ComputedTorqueController(pp, law) for pp, _, law in cases], [traj] * 3, progress=False)
     for a, b in zip(single, batch):
-        for name in ("alpha", "alpha_hat", "force", "theta", "gamma", "camera_alpha"):
+        assert a.saturated.shape == a.requested.shape == a.force.shape == (len(a.t), 4)
+        for name in ("alpha", "alpha_hat", "force", "requested", "saturated", "theta", "gamma", "camera_alpha"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert not np.array_equal(single[0].force, single[1].force)
 
