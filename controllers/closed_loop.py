@@ -1,13 +1,15 @@
 """The experiment runner: a plant, a controller and a trajectory, closed loop at the control rate.
 
-``run_closed_loop`` is the one place where experiments happen (control tests, identification
-data, reproductions).  Each control period k (t_k = k / rate):
+``run_lockstep`` is the one place where experiments happen (control tests, identification
+data, reproductions); ``run_closed_loop`` is its single-run case.  Each control period k
+(t_k = k / rate), for K independent runs at once:
 
-    theta_k = plant.encoders();   step = controller.step(theta_k, reference_k)
-    plant.step(step.forces);      frame = plant.camera_frame()
+    theta_k = plant.encoders() for each run;   one compiled controller step for all K runs
+    plant.step(forces) for each run;          frame = plant.camera_frame()
 
 and everything is recorded -- the measured topics (motors, camera, reference, estimate) and the
-simulation truth -- to arrays and, if asked, to an MCAP log through :class:`neck_sim.logs.LogWriter`.
+simulation truth -- to arrays and, if asked, to an MCAP log written in bulk from those arrays
+when the run ends (:meth:`neck_sim.logs.LogWriter.write_batch`).
 
 The metrics are the paper's (§7, Table 3), in degrees, averaged over every sample and joint:
 
@@ -29,11 +31,12 @@ from typing import Any
 
 import numpy as np
 
-from controllers.computed_torque import ComputedTorqueController
+from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, output_slices,
+                                        reference_table, step_error)
 from controllers.trajectories import Trajectory
 from neck_sim.replay import plant_run_info
 
-__all__ = ["SLACK_TENSION", "Metrics", "RunResult", "run_closed_loop", "compute_metrics"]
+__all__ = ["SLACK_TENSION", "Metrics", "RunResult", "run_closed_loop", "run_lockstep", "compute_metrics"]
 
 SLACK_TENSION = 1e-6   # N: a cable carrying less than this is slack (the plant's tension is exactly 0 then)
 
@@ -159,84 +162,162 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
     failure (estimate outside the workspace, infeasible tensions) stops the run with RuntimeError
     naming the time and the reason.
     """
+    return run_lockstep([plant], [controller], [trajectory], log_paths=[log_path], progress=progress, reset=reset,
+                        run_infos=[run_info], stop_on_error=True)[0]
+
+
+def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress: bool = True, reset: bool = True,
+                 run_infos=None, stop_on_error: bool = False) -> list:
+    """K independent closed-loop runs advanced together, period by period (lockstep batch).
+
+    ``plants``, ``controllers``, ``trajectories`` (and ``log_paths``, ``run_infos``, default None)
+    are K-long sequences: each run has its own plant (seed, parameters, effects), controller (law,
+    model, gains) and trajectory; all trajectories have the same number of control periods and
+    every controller the same N.  One compiled call advances the K controllers; the plants then
+    step one after another (each plant's physics runs through MuJoCo's process-wide callback).
+    Memory: about 8 (13 N + 7) K T bytes for T periods.
+
+    Returns one entry per run: its :class:`RunResult`, or (``stop_on_error=False``) the
+    RuntimeError that stopped it (controller failure, diverged plant) while the others go on.
+    With ``stop_on_error=True`` the first failure is raised.
+    """
     from tqdm.auto import tqdm
 
-    p = controller.params
-    n = p.n_joints
-    trajectory.check_workspace(p)
-    plant_rate = plant.params.control.rate_hz
-    if abs(plant_rate - p.control.rate_hz) > 1e-9:
-        raise ValueError(f"control rate: plant steps at {plant_rate} Hz, controller at {p.control.rate_hz} Hz")
-    rate = p.control.rate_hz
-    steps = int(round(trajectory.duration * rate)) + 1
-    times = np.arange(steps) / rate
-    ref = controller.motor_reference(trajectory.sample(times))
+    plants, controllers, trajectories = list(plants), list(controllers), list(trajectories)
+    K = len(plants)
+    log_paths = [None] * K if log_paths is None else list(log_paths)
+    run_infos = [None] * K if run_infos is None else list(run_infos)
+    if K == 0 or not (len(controllers) == len(trajectories) == len(log_paths) == len(run_infos) == K):
+        sizes = [K, len(controllers), len(trajectories), len(log_paths), len(run_infos)]
+        raise ValueError(f"lockstep: need as many controllers, trajectories, log paths and run infos as plants "
+                         f"(>= 1), got {sizes}")
+    n = controllers[0].params.n_joints
+    rate = controllers[0].params.control.rate_hz
+    steps = None
+    refs = []
+    for i, (plant, ctrl, traj) in enumerate(zip(plants, controllers, trajectories)):
+        p = ctrl.params
+        traj.check_workspace(p)
+        if abs(plant.params.control.rate_hz - p.control.rate_hz) > 1e-9:
+            raise ValueError(f"control rate: plant steps at {plant.params.control.rate_hz} Hz, controller at "
+                             f"{p.control.rate_hz} Hz")
+        if abs(p.control.rate_hz - rate) > 1e-9 or p.n_joints != n:
+            raise ValueError(f"lockstep run {i}: every controller needs N = {n} and {rate} Hz")
+        length = int(round(traj.duration * rate)) + 1
+        if steps is not None and length != steps:
+            raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {steps}")
+        steps = length
+        refs.append(ctrl.motor_reference(traj.sample(np.arange(steps) / rate)))
+    m = controllers[0].params.n_cables
+    if any(c.params.n_cables != m for c in controllers):
+        raise ValueError(f"lockstep: every controller needs the same number of cables ({m})")
+    compiled = all(isinstance(c, ComputedTorqueController) for c in controllers)
+    for plant, ctrl, ref in zip(plants, controllers, refs):
+        if reset:
+            plant.reset(alpha0=ref.alpha[0])
+        ctrl.reset(ref.alpha[0], plant.encoders())
+    if compiled:
+        tables = np.stack([reference_table(r) for r in refs])
+        state = ControllerState.stack([c.state for c in controllers])
+        status = state.status
 
-    alpha0 = ref.alpha[0]
-    if reset:
-        plant.reset(alpha0=alpha0)
-    controller.reset(alpha0, plant.encoders())
-
-    # The plant's seed, effects and parameters make `neck-sim replay` of this log exact.
-    info = {**plant_run_info(plant), "trajectory": trajectory.name, "duration_s": trajectory.duration,
-            "law": int(controller.law), "controller": controller.describe(), "rate_hz": rate, **(run_info or {})}
-    m = p.n_cables
-    rec = {name: np.empty((steps,) + shape) for name, shape in (
-        ("t", ()), ("alpha_hat", (n,)), ("theta", (m,)), ("force", (m,)), ("requested", (m,)),
-        ("elongation_hat", (m,)), ("gamma", (n,)), ("alpha", (n,)), ("alpha_dot", (n,)),
-        ("tension", (m,)), ("elongation", (m,)), ("loop_gap", ()))}
-    rec["saturated"] = np.zeros((steps, m), dtype=bool)
-    cam_t, cam_a = [], []
-
-    writer = _log_writer(log_path, plant, info)
+    # The plant's seed, effects and parameters make `neck-sim replay` of a log exact.
+    infos = [{**plant_run_info(plant), "trajectory": traj.name, "duration_s": traj.duration, "law": int(ctrl.law),
+              "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
+             for plant, ctrl, traj, info in zip(plants, controllers, trajectories, run_infos)]
+    recs = [{name: np.empty((steps,) + shape) for name, shape in (
+        ("t", ()), ("theta", (m,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (m,)),
+        ("elongation", (m,)), ("loop_gap", ()))} for _ in range(K)]
+    columns = output_slices(n, m)
+    outs = np.zeros((K, steps, max(sl.stop for sl in columns.values())))   # rows of output_slices
+    theta = np.empty((K, m))
+    cameras = [([], []) for _ in range(K)]
+    errors: list = [None] * K
+    writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
+    forces = columns["forces"]
+    # per run: its index, plant, recording rows and commanded-force rows (views, bound once)
+    live = [(i, plants[i], recs[i]["t"], recs[i]["theta"], recs[i]["alpha"], recs[i]["alpha_dot"], recs[i]["tension"],
+             recs[i]["elongation"], recs[i]["loop_gap"], outs[i][:, forces], cameras[i]) for i in range(K)]
     try:
-        bar = tqdm(range(steps), desc=f"{trajectory.name} law {int(controller.law)}", unit="step",
-                   disable=not progress, mininterval=0.5)
+        desc = trajectories[0].name + (f" law {int(controllers[0].law)}" if K == 1 else f" x {K}")
+        bar = tqdm(range(steps), desc=desc, unit="step", disable=not progress, mininterval=0.5)
         for k in bar:
-            t = plant.time
-            theta = plant.encoders()
-            truth = plant.truth()
-            try:
-                out = controller.step(theta, ref.at(k))
-            except ValueError as exc:
-                raise RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}") from exc
-            plant.step(out.forces)
-            frame = plant.camera_frame()
-
-            rec["t"][k] = t
-            rec["alpha_hat"][k] = out.alpha_hat
-            rec["theta"][k] = theta
-            rec["force"][k] = out.forces
-            rec["requested"][k] = out.requested
-            rec["saturated"][k] = out.saturated
-            rec["elongation_hat"][k] = out.elongation
-            rec["gamma"][k] = out.gamma
-            rec["alpha"][k] = truth.alpha
-            rec["alpha_dot"][k] = truth.alpha_dot
-            rec["tension"][k] = truth.tension
-            rec["elongation"][k] = truth.elongation
-            rec["loop_gap"][k] = truth.loop_gap
-            if frame is not None:
-                cam_t.append(frame[0])
-                cam_a.append(frame[1])
-            if writer is not None:
-                writer.motors(t, theta, out.forces)
-                writer.reference(t, ref.alpha[k])
-                writer.estimate(t, out.alpha_hat)
-                writer.truth(t, truth.alpha, truth.alpha_dot, truth.tension, truth.elongation)
+            for i, plant, r_t, r_theta, *_ in live:
+                r_t[k] = plant.time
+                r_theta[k] = theta[i] = plant.encoders()
+            if compiled:
+                advance(state, theta, k, tables, outs)
+            failed = False
+            for i, plant, r_t, _, r_alpha, r_alpha_dot, r_tension, r_elong, r_gap, f, camera in live:
+                truth = plant.truth()
+                r_alpha[k] = truth.alpha
+                r_alpha_dot[k] = truth.alpha_dot
+                r_tension[k] = truth.tension
+                r_elong[k] = truth.elongation
+                r_gap[k] = truth.loop_gap
+                try:
+                    if not compiled:
+                        # a copy: theta's row is overwritten next period and a controller may keep it
+                        _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
+                    elif status[i]:
+                        raise step_error(int(status[i]), outs[i, k, :n], controllers[i].params.geometry.alpha_max)
+                    plant.step(f[k])
+                except (ValueError, RuntimeError) as exc:
+                    err = RuntimeError(f"closed loop stopped at t = {r_t[k]:.3f} s: {exc}")
+                    if stop_on_error:
+                        raise err from exc
+                    err.__cause__ = exc
+                    errors[i] = err
+                    if compiled:
+                        status[i] = status[i] or -1       # the controller stops with its plant
+                    failed = True
+                    continue
+                frame = plant.camera_frame()
                 if frame is not None:
-                    writer.camera(frame[0], frame[1])
+                    camera[0].append(frame[0])
+                    camera[1].append(frame[1])
+            if failed:
+                live = [run for run in live if errors[run[0]] is None]
         bar.close()
+        results = []
+        for i in range(K):
+            if errors[i] is not None:
+                if writers[i] is not None:
+                    writers[i].abort()
+                results.append(errors[i])
+                continue
+            results.append(_result(recs[i], outs[i], refs[i], cameras[i], infos[i], writers[i], columns))
     except BaseException:
-        if writer is not None:
-            writer.abort()
+        for w in writers:
+            if w is not None:
+                w.abort()
         raise
-    if writer is not None:
-        writer.close()
+    return results
 
-    camera_t = np.asarray(cam_t, dtype=float).reshape(-1)
-    camera_alpha = np.asarray(cam_a, dtype=float).reshape(-1, n)
+
+def _store(row: np.ndarray, out, columns: dict) -> None:
+    """A controller's ControlStep into its output row (columns of :func:`output_slices`)."""
+    for name, sl in columns.items():
+        row[sl] = getattr(out, name)
+
+
+def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, columns: dict) -> RunResult:
+    """The RunResult of one finished run; its log (if any) written and closed."""
+    cols = {name: out[:, sl] for name, sl in columns.items()}
+    n = cols["alpha_hat"].shape[1]
+    camera_t = np.asarray(camera[0], dtype=float).reshape(-1)
+    camera_alpha = np.asarray(camera[1], dtype=float).reshape(-1, n)
+    if writer is not None:
+        t = rec["t"]
+        writer.write_batch("motors", t, rec["theta"], cols["forces"])
+        writer.write_batch("reference", t, ref.alpha)
+        writer.write_batch("estimate", t, cols["alpha_hat"])
+        writer.write_batch("truth", t, rec["alpha"], rec["alpha_dot"], rec["tension"], rec["elongation"])
+        writer.write_batch("camera", camera_t, camera_alpha)
+        writer.close()
+    rec = dict(rec, alpha_hat=cols["alpha_hat"], force=cols["forces"], requested=cols["requested"],
+               saturated=cols["saturated"] > 0.5, elongation_hat=cols["elongation"], gamma=cols["gamma"])
     metrics = compute_metrics(rec["t"], ref.alpha, rec["alpha_hat"], rec["alpha"], rec["tension"], rec["force"],
                               rec["saturated"], camera_t, camera_alpha)
     return RunResult(alpha_d=ref.alpha, camera_t=camera_t, camera_alpha=camera_alpha, metrics=metrics, info=info,
-                     log_path=None if log_path is None else os.fspath(log_path), **rec)
+                     log_path=None if writer is None else writer.path, **rec)

@@ -17,6 +17,11 @@ The three laws of §6.3: law 1 leaves friction out of (66) and (65) and assumes 
 cables; law 2 adds friction; law 3 adds the variable-stiffness cable model (model 2) to the
 estimator only.
 
+Steps 1-4 run as one compiled call (numba, :mod:`neck_sim.jit`) built from the same formula
+kernels the numpy API of :mod:`neck_sim.analytic` and :mod:`controllers.tension` calls; the state
+of K controllers is stacked in a :class:`ControllerState` so that lockstep batches
+(:func:`controllers.closed_loop.run_lockstep`) advance in one call.
+
 The controller's *model* is separate from the plant's truth: ``params`` holds what the controller
 knows of the neck (geometry -- set ``geometry.r = 0`` for a controller that ignores the pulleys --,
 actuation, springs, inertia, gains); friction ``f_s`` and cable coefficients are constructor
@@ -30,14 +35,20 @@ from typing import NamedTuple
 
 import numpy as np
 
-from controllers.estimators import CableModel, ElongationEstimator, JointAngleEstimator
-from controllers.tension import distribute_tensions, tension_lower_bounds
+from controllers.estimators import CableModel, ElongationEstimator, estimated_tension
+from controllers.tension import (TensionInfeasibleError, distribute_kernel, infeasible_message,
+                                 tension_lower_bounds)
 from controllers.trajectories import TrajectorySample
-from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
-from neck_sim.analytic.dynamics import linkage_dynamics, motor_friction
+from neck_sim.analytic.cables import cable_kinematics, transmission_kernel, transmission_matrix
+from neck_sim.analytic.dynamics import (_euler_elongation, _stiffness, arctan_friction, linkage_constants,
+                                       linkage_kernel, motor_friction)
+from neck_sim.analytic.estimation import UnreachableError, pinv_increment_kernel
+from neck_sim.analytic.geometry import check_cables
+from neck_sim.jit import kernel
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["ControlLaw", "OutsideWorkspaceError", "MotorReference", "ControlStep", "ComputedTorqueController"]
+__all__ = ["ControlLaw", "OutsideWorkspaceError", "MotorReference", "ControlStep", "ComputedTorqueController",
+           "reference_table", "output_slices", "ControllerState", "advance", "step_error"]
 
 
 class OutsideWorkspaceError(ValueError):
@@ -80,6 +91,13 @@ class MotorReference(NamedTuple):
         return MotorReference(*(x[k] for x in self))
 
 
+def reference_table(ref: MotorReference) -> np.ndarray:
+    """The reference as one C-contiguous (..., 6N + 3) row per sample for the compiled step:
+    alpha, alpha_dot, alpha_ddot (N each), theta_dot, friction, lower (N+1 each)."""
+    return np.ascontiguousarray(np.concatenate(
+        [ref.alpha, ref.alpha_dot, ref.alpha_ddot, ref.theta_dot, ref.friction, ref.lower], axis=-1))
+
+
 class ControlStep(NamedTuple):
     """One control period's output.
 
@@ -95,6 +113,200 @@ class ControlStep(NamedTuple):
     elongation: np.ndarray
     gamma: np.ndarray
     w: np.ndarray
+
+# -- the compiled step ------------------------------------------------------------------------
+# State rows (ControllerState.values, (K, 7, N+1)): joint rows use the first N entries.
+_ALPHA_HAT, _ALPHA_PREV, _INTEGRAL, _THETA_PREV, _X, _FORCE_PREV, _THETA_DOT_PREV = range(7)
+# Constants (K, 9): gains of eq (59), period, reflected inertia, force cap, joint range, r_d/R,
+# elastic estimator on/off.
+_KP, _KV, _KI, _DT, _IA, _FMAX, _AMAX, _RATIO, _ELASTIC = range(9)
+# Output row per sample, (..., 7N + 4): alpha_hat, elongation (N+1), gamma, w, forces (N+1),
+# requested (N+1), saturated (N+1, 0/1).
+# Status codes of the kernels (0: done).
+_SINGULAR_ESTIMATE, _NOT_FINITE, _OUTSIDE, _TENSION = 1, 2, 100, 1000
+# the compiled twins of the numpy formulas (numba resolves module globals, not attributes)
+_friction, _tension_hat = arctan_friction.jit, estimated_tension.jit
+_stiff, _euler = _stiffness.jit, _euler_elongation.jit
+
+
+def output_slices(n: int, m: int | None = None) -> dict[str, slice]:
+    """Columns of one output row for N joints and m cables (default N + 1, the compiled layout)."""
+    m = n + 1 if m is None else m
+    sizes = (("alpha_hat", n), ("elongation", m), ("gamma", n), ("w", n), ("forces", m),
+             ("requested", m), ("saturated", m))
+    out, start = {}, 0
+    for name, size in sizes:
+        out[name] = slice(start, start + size)
+        start += size
+    return out
+
+
+@kernel
+def _estimate_and_pid(theta, k, st, flags, const, cab, Z, ref, out) -> int:
+    """Eq (35) corrected (with the eq-58 elongation when elastic), the workspace check and eq (59)
+    for one controller; Z (N, N+1) is Z(alpha_hat) of the previous step.  Returns a status."""
+    n = Z.shape[0]
+    for j in range(n + 1):
+        if not np.isfinite(theta[j]):
+            return _NOT_FINITE
+    ah = st[_ALPHA_HAT]
+    if flags[0] == 0:                       # first reading: it defines theta at the start pose
+        flags[0] = 1
+    else:
+        rhs = np.empty(n + 1)
+        for j in range(n + 1):
+            rhs[j] = const[_RATIO] * (theta[j] - st[_THETA_PREV, j])
+        if const[_ELASTIC] != 0.0 and flags[1] != 0:
+            for j in range(n + 1):
+                fr = _friction(st[_THETA_DOT_PREV, j], cab[4, 0], cab[3, j])
+                t_hat = _tension_hat(st[_FORCE_PREV, j], fr)
+                x_new = _euler(st[_X, j], t_hat, cab[4, 1], cab[2, j], _stiff(t_hat, cab[0, j], cab[1, j]))
+                rhs[j] -= x_new - st[_X, j]
+                st[_X, j] = x_new
+        inc = np.empty(n)
+        if not pinv_increment_kernel(Z, rhs, inc):
+            return _SINGULAR_ESTIMATE
+        for i in range(n):
+            ah[i] += inc[i]
+    for j in range(n + 1):
+        st[_THETA_PREV, j] = theta[j]
+    for i in range(n):
+        if abs(ah[i]) > const[_AMAX]:
+            return _OUTSIDE + i
+    dt = const[_DT]
+    o = out[k]
+    r = ref[k]
+    for i in range(n):                      # eq (59)
+        e = r[i] - ah[i]
+        e_dot = r[n + i] - (ah[i] - st[_ALPHA_PREV, i]) / dt
+        st[_INTEGRAL, i] += e * dt
+        o[3 * n + 1 + i] = r[2 * n + i] + const[_KV] * e_dot + const[_KP] * e + const[_KI] * st[_INTEGRAL, i]
+        o[i] = ah[i]
+    for j in range(n + 1):
+        o[n + j] = st[_X, j]
+    return 0
+
+
+@kernel
+def _torque_and_tensions(k, st, flags, const, lk, Z, ref, out) -> int:
+    """M, g at alpha_hat (eq 24), Gamma_d of eq (66) and the tension distribution (eqs 63-65)."""
+    n = Z.shape[0]
+    o = out[k]
+    r = ref[k]
+    ah = st[_ALPHA_HAT, :n]
+    M = np.empty((n, n))
+    c = np.empty(n)
+    g = np.empty(n)
+    linkage_kernel(ah, np.zeros(n), lk, M, c, g)
+    ia = const[_IA]
+    w = o[3 * n + 1: 4 * n + 1]
+    gamma = o[2 * n + 1: 3 * n + 1]
+    for i in range(n):
+        acc = g[i]
+        for j in range(n):
+            mij = M[i, j]
+            for q in range(n + 1):
+                mij += ia * Z[i, q] * Z[j, q]
+            acc += mij * w[j]
+        for q in range(n + 1):
+            acc += Z[i, q] * r[3 * n + (n + 1) + q]          # Z f_friction(theta_d')
+        gamma[i] = acc
+    base = 4 * n + 1
+    forces = o[base: base + n + 1]
+    requested = o[base + n + 1: base + 2 * n + 2]
+    sat = np.empty(n + 1, dtype=np.bool_)
+    status, _ = distribute_kernel(Z, gamma, r[3 * n + 2 * (n + 1): 3 * n + 3 * (n + 1)], const[_FMAX],
+                                  forces, requested, sat)
+    if status != 0:
+        return _TENSION + status
+    for j in range(n + 1):
+        o[base + 2 * n + 2 + j] = 1.0 if sat[j] else 0.0
+        st[_FORCE_PREV, j] = forces[j]
+        st[_THETA_DOT_PREV, j] = r[3 * n + j]
+    for i in range(n):
+        st[_ALPHA_PREV, i] = ah[i]
+    flags[1] = 1
+    return 0
+
+
+@kernel
+def control_rows(theta, k, st, flags, const, cab, lk, geometry, cases, Z, ref, out, status) -> None:
+    """One control period of K controllers (leading axis of every argument but ``k``).
+
+    Per controller: eq (35) with Z of the previous estimate, eq (59), Z at the new estimate
+    (``transmission_kernel``, geometry (b, L, r), routing cases (m, N)), eqs (24), (66), (63)-(65).
+    Rows with a non-zero status are skipped; a failing row sets its status.
+    """
+    for r in range(theta.shape[0]):
+        if status[r] != 0:
+            continue
+        status[r] = _estimate_and_pid(theta[r], k, st[r], flags[r], const[r], cab[r], Z[r], ref[r], out[r])
+        if status[r] != 0:
+            continue
+        transmission_kernel(st[r, _ALPHA_HAT, : Z.shape[1]], geometry[r], cases[r], Z[r])
+        status[r] = _torque_and_tensions(k, st[r], flags[r], const[r], lk[r], Z[r], ref[r], out[r])
+
+
+def step_error(status: int, alpha_hat: np.ndarray, alpha_max: float) -> ValueError:
+    """The exception a kernel status stands for (alpha_hat (N,) rad the estimate then, alpha_max rad)."""
+    if status == _NOT_FINITE:
+        return ValueError("theta: contains NaN or infinity")
+    if status == _SINGULAR_ESTIMATE:
+        return UnreachableError("alpha_hat: Z Z^T is singular (pose outside the workspace)")
+    if _OUTSIDE <= status < _TENSION:
+        j = status - _OUTSIDE
+        return OutsideWorkspaceError(
+            f"alpha_hat: joint {j + 1} estimated at {np.degrees(alpha_hat[j]):.1f} deg, outside the "
+            f"workspace |alpha| <= {np.degrees(alpha_max):.1f} deg")
+    return TensionInfeasibleError(infeasible_message(status - _TENSION, ()))
+
+
+class ControllerState:
+    """Everything the compiled step of K controllers reads and writes, stacked on axis 0.
+
+    values (K, 7, N+1), flags (K, 2) int (encoder read once, a force commanded once), const
+    (K, 9), cables (K, 5, N+1) the eq-58 coefficients, linkage (K, 7 + N) the model's linkage
+    constants, geometry (K, 3) b, L, r, cases (K, N+1, N) the routing, Z (K, N, N+1) Z at the
+    current estimate, status (K,) int.
+    """
+
+    def __init__(self, controllers):
+        ctrls = list(controllers)
+        n = ctrls[0].params.n_joints
+        if any(c.params.n_joints != n for c in ctrls):
+            raise ValueError("controllers: every controller of a batch must have the same number of joints")
+        self.n = n
+        self.values = np.zeros((len(ctrls), 7, n + 1))
+        self.flags = np.zeros((len(ctrls), 2), dtype=np.int64)
+        self.const = np.stack([c._constants() for c in ctrls])
+        self.cables = np.stack([c._cable_constants() for c in ctrls])
+        self.linkage = np.stack([linkage_constants(c.params) for c in ctrls])
+        self.geometry = np.array([[c.params.geometry.b, c.params.geometry.L, c.params.geometry.r] for c in ctrls])
+        self.cases = np.stack([c.params.routing.segment_cases(n) for c in ctrls]).astype(np.int64)
+        self.Z = np.zeros((len(ctrls), n, n + 1))
+        self.status = np.zeros(len(ctrls), dtype=np.int64)
+
+    @classmethod
+    def stack(cls, states) -> "ControllerState":
+        """One state of the controllers of several states, in order (arrays copied)."""
+        states = list(states)
+        if any(s.n != states[0].n for s in states):
+            raise ValueError("controllers: every controller of a batch must have the same number of joints")
+        out = cls.__new__(cls)
+        out.n = states[0].n
+        for name in ("values", "flags", "const", "cables", "linkage", "geometry", "cases", "Z", "status"):
+            setattr(out, name, np.concatenate([getattr(s, name) for s in states]))
+        return out
+
+
+
+def advance(state: ControllerState, theta: np.ndarray, k: int, ref: np.ndarray, out: np.ndarray) -> None:
+    """One control period of K controllers: theta (K, N+1), row k of ref (K, T, 6N+3) -> out (K, T, 7N+4).
+
+    Controllers whose status is not 0 are left alone (their status says why they stopped).
+    """
+    control_rows(theta, k, state.values, state.flags, state.const, state.cables, state.linkage, state.geometry,
+                 state.cases, state.Z, ref, out, state.status)
 
 
 class ComputedTorqueController:
@@ -145,9 +357,20 @@ class ComputedTorqueController:
             raise ValueError(f"force limits: need 0 <= f_min <= f_max and t_min >= 0, got "
                              f"f_min = {self.f_min}, f_max = {self.f_max}, t_min = {self.t_min}")
         self.dt = 1.0 / p.control.rate_hz
-        elong = ElongationEstimator.for_model(self.cable_model, p, k=k, lam=lam, c_a=c_a, f_s=f_s)
-        self.estimator = JointAngleEstimator(p, elong)
+        self.elongation = ElongationEstimator.for_model(self.cable_model, p, k=k, lam=lam, c_a=c_a, f_s=f_s)
+        self.state = ControllerState([self])
+        self._columns = output_slices(n)
         self.reset()
+
+    def _constants(self) -> np.ndarray:
+        act = self.params.actuation
+        k_p, k_v, k_i = self.gains
+        return np.array([k_p, k_v, k_i, self.dt, act.reflected_inertia, self.f_max, self.params.geometry.alpha_max,
+                         act.r_d / act.R, float(self.elongation is not None)])
+
+    def _cable_constants(self) -> np.ndarray:
+        n1 = self.params.n_cables
+        return np.zeros((5, n1)) if self.elongation is None else self.elongation.constants()
 
     # -- reference ---------------------------------------------------------------------------
     def motor_reference(self, sample: TrajectorySample) -> MotorReference:
@@ -166,41 +389,49 @@ class ComputedTorqueController:
 
     # -- loop --------------------------------------------------------------------------------
     def reset(self, alpha0=None, theta0=None) -> None:
-        """Start from pose ``alpha0`` (default straight), encoders reading ``theta0`` there."""
-        self.estimator.reset(alpha0, theta0)
-        self._integral = np.zeros(self.params.n_joints)
-        self._alpha_prev = self.estimator.alpha_hat.copy()
-        self._force_prev = None
-        self._theta_dot_prev = None
+        """Start from pose ``alpha0`` (default straight), encoders reading ``theta0`` there
+        (None: the first reading given to :meth:`step`), cables unstretched."""
+        p = self.params
+        n = p.n_joints
+        st = self.state
+        st.values[0] = 0.0
+        st.flags[0] = 0
+        st.status[0] = 0
+        if alpha0 is not None:
+            st.values[0, _ALPHA_HAT, :n] = check_cables(alpha0, n, "alpha0")
+            st.values[0, _ALPHA_PREV, :n] = st.values[0, _ALPHA_HAT, :n]
+        if theta0 is not None:
+            st.values[0, _THETA_PREV] = check_cables(theta0, n + 1, "theta0")
+            st.flags[0, 0] = 1
+        st.Z[0] = transmission_matrix(st.values[0, _ALPHA_HAT, :n], p)
+
+    @property
+    def alpha_hat(self) -> np.ndarray:
+        """The current estimate (N,) rad."""
+        return self.state.values[0, _ALPHA_HAT, : self.params.n_joints].copy()
+
+    def step_into(self, theta, k: int, ref_table: np.ndarray, out_table: np.ndarray) -> None:
+        """One control period from encoder reading ``theta`` (N+1,) rad and row ``k`` of
+        :func:`reference_table`, written into row ``k`` of ``out_table`` (T, 7N + 4) (see
+        :func:`output_slices`).  Raises the controller's errors (ValueError subclasses)."""
+        advance(self.state, np.asarray(theta, dtype=float)[None], k, ref_table[None], out_table[None])
+        if self.state.status[0]:
+            raise step_error(int(self.state.status[0]), out_table[k, : self.params.n_joints],
+                             self.params.geometry.alpha_max)
 
     def step(self, theta, ref: MotorReference) -> ControlStep:
         """Forces for the next period from the encoder reading ``theta`` (N+1,) rad and one
         reference sample ``ref`` (:meth:`motor_reference` of a single time, or ``.at(k)``)."""
-        p = self.params
-        alpha_hat = self.estimator.update(theta, self._force_prev, self._theta_dot_prev).copy()
-        amax = p.geometry.alpha_max
-        if np.any(np.abs(alpha_hat) > amax):
-            j = int(np.argmax(np.abs(alpha_hat)))
-            raise OutsideWorkspaceError(
-                f"alpha_hat: joint {j + 1} estimated at {np.degrees(alpha_hat[j]):.1f} deg, outside the "
-                f"workspace |alpha| <= {np.degrees(amax):.1f} deg")
-        e = ref.alpha - alpha_hat
-        e_dot = ref.alpha_dot - (alpha_hat - self._alpha_prev) / self.dt
-        self._integral = self._integral + e * self.dt
-        k_p, k_v, k_i = self.gains
-        w = ref.alpha_ddot + k_v * e_dot + k_p * e + k_i * self._integral          # eq (59)
-
-        lk = linkage_dynamics(alpha_hat, np.zeros_like(alpha_hat), p)
-        Z = transmission_matrix(alpha_hat, p)
-        M = lk.M + p.actuation.reflected_inertia * Z @ Z.T                          # eq (24)
-        gamma = M @ w + lk.g + Z @ ref.friction                                     # eq (66)
-        dist = distribute_tensions(Z, gamma, ref.lower, self.f_max)                 # eqs (63)-(65)
-
-        self._alpha_prev = alpha_hat
-        self._force_prev = dist.forces
-        self._theta_dot_prev = ref.theta_dot
-        return ControlStep(dist.forces, dist.requested, dist.saturated, alpha_hat,
-                           self.estimator.x.copy(), gamma, w)
+        n = self.params.n_joints
+        theta = np.asarray(theta, dtype=float)
+        if theta.shape != (n + 1,):
+            raise ValueError(f"theta: expected shape ({n + 1},) (one angle per motor), got {theta.shape}")
+        table = reference_table(MotorReference(*(np.asarray(x, dtype=float) for x in ref)))[None]
+        out = np.zeros((1, 7 * n + 4))
+        self.step_into(theta, 0, table, out)
+        o = {name: out[0, sl] for name, sl in self._columns.items()}
+        return ControlStep(o["forces"], o["requested"], o["saturated"] > 0.5, o["alpha_hat"], o["elongation"],
+                           o["gamma"], o["w"])
 
     def describe(self) -> str:
         """One line naming the law and the model it uses."""

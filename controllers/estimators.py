@@ -30,12 +30,13 @@ from enum import Enum
 
 import numpy as np
 
-from neck_sim.analytic.dynamics import elongation_step
+from neck_sim.analytic.dynamics import arctan_friction, elongation_step
 from neck_sim.analytic.estimation import pinv_increment
 from neck_sim.analytic.geometry import check_cables
+from neck_sim.jit import dual
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["CableModel", "ElongationEstimator", "JointAngleEstimator"]
+__all__ = ["CableModel", "estimated_tension", "ElongationEstimator", "JointAngleEstimator"]
 
 
 class CableModel(str, Enum):
@@ -58,6 +59,12 @@ def _per_cable(value, n_cables: int, name: str) -> np.ndarray:
     if arr.ndim != 1:
         raise ValueError(f"{name}: expected {n_cables} values (one per cable), got shape {arr.shape}")
     return check_cables(arr, n_cables, name)
+
+
+@dual
+def estimated_tension(force, friction):
+    """t_hat = max(f - friction, 0) (N): the commanded force less the believed friction; a cable cannot push."""
+    return np.maximum(force - friction, 0.0)
 
 
 class ElongationEstimator:
@@ -108,14 +115,20 @@ class ElongationEstimator:
 
     def tension(self, force, theta_dot) -> np.ndarray:
         """t_hat = max(f - (2/pi) arctan(c_s theta_dot) f_s, 0), (N+1,) N."""
-        fr = (2 / np.pi) * np.arctan(self.c_s * np.asarray(theta_dot, dtype=float)) * self.f_s
-        return np.maximum(np.asarray(force, dtype=float) - fr, 0.0)
+        fr = arctan_friction(np.asarray(theta_dot, dtype=float), self.c_s, self.f_s)
+        return estimated_tension(np.asarray(force, dtype=float), fr)
 
     def step(self, force, theta_dot) -> np.ndarray:
         """Advance one period with the force (N+1,) N applied during it and the motor speed (rad/s)."""
-        t_hat = self.tension(force, theta_dot)
-        self.x = elongation_step(self.x, t_hat, self.dt, self.k, self.lam, self.c_a)
+        self.x = elongation_step(self.x, self.tension(force, theta_dot), self.dt, self.k, self.lam, self.c_a)
         return self.x
+
+    def constants(self) -> np.ndarray:
+        """(5, N+1) rows k, lam, c_a, f_s, and [c_s, dt, 0...] for the compiled control step."""
+        n1 = self.k.size
+        extra = np.zeros(n1)
+        extra[:2] = self.c_s, self.dt
+        return np.stack([self.k, self.lam, self.c_a, self.f_s, extra])
 
 
 class JointAngleEstimator:

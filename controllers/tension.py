@@ -23,7 +23,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from neck_sim.analytic.dynamics import arctan_friction
 from neck_sim.analytic.geometry import check_cables
+from neck_sim.jit import kernel, solve_in_place
 from neck_sim.params import NeckParams
 
 __all__ = ["TensionInfeasibleError", "TensionDistribution", "tension_lower_bounds", "distribute_tensions"]
@@ -73,7 +75,7 @@ def tension_lower_bounds(theta_dot_d, theta_ddot_d, params: NeckParams, *, f_s=N
     bound = t_min + (act.R / act.r_d) * act.I_a * tdd
     if f_s is not None:
         fs = check_cables(f_s, n1, "f_s")
-        bound = bound + (2 / np.pi) * np.arctan(params.friction.c_s * td) * fs
+        bound = bound + arctan_friction(td, params.friction.c_s, fs)
     return np.maximum(bound, f_min)
 
 
@@ -98,28 +100,70 @@ def distribute_tensions(Z, gamma, lower, f_max: float) -> TensionDistribution:
     if not (np.isfinite(f_max) and f_max > 0):
         raise ValueError(f"f_max: must be finite and positive, got {f_max}")
     batch = np.broadcast_shapes(Z.shape[:-2], gamma.shape[:-1], lower.shape[:-1])
-    Z = np.broadcast_to(Z, batch + Z.shape[-2:])
-    gamma = np.broadcast_to(gamma, batch + (n,))
-    lower = np.broadcast_to(lower, batch + (n + 1,))
+    rows = int(np.prod(batch))
 
-    Z1, Z2 = Z[..., :, :n], Z[..., :, n]
-    rhs = np.stack([gamma, -Z2], axis=-1)                                 # (..., N, 2)
-    try:
-        sol = np.linalg.solve(Z1, rhs)
-    except np.linalg.LinAlgError:
-        raise TensionInfeasibleError("Z1 (right cables) is singular: pose outside the workspace") from None
-    u = np.concatenate([sol[..., 0], np.zeros(batch + (1,))], axis=-1)  # eq (63), first term
-    v = np.concatenate([sol[..., 1], np.ones(batch + (1,))], axis=-1)   # eq (63), direction
-    bad = ~(v > 0) | ~np.isfinite(v)
-    if np.any(bad):
-        idx = np.argwhere(bad)[0]
-        raise TensionInfeasibleError(
-            f"-Z1^-1 Z2 has a non-positive entry for cable c{idx[-1] + 1} at sample {tuple(int(i) for i in idx[:-1])}: "
-            f"no positive cable forces produce every torque there (pose outside the workspace)")
-    candidates = (lower - u) / v                                          # eq (65) met with equality
-    binding = np.argmax(candidates, axis=-1)
-    s = np.take_along_axis(candidates, binding[..., None], axis=-1)
-    requested = u + v * s
-    saturated = requested > f_max
-    return TensionDistribution(np.minimum(requested, f_max), requested, saturated, binding)
+    def flat(x, shape):
+        return np.ascontiguousarray(np.broadcast_to(x, batch + shape)).reshape((rows,) + shape)
 
+    forces, requested = np.empty((rows, n + 1)), np.empty((rows, n + 1))
+    saturated = np.empty((rows, n + 1), dtype=np.bool_)
+    binding = np.empty(rows, dtype=np.int64)
+    row, status = _distribute_rows(flat(Z, (n, n + 1)), flat(gamma, (n,)), flat(lower, (n + 1,)), float(f_max),
+                                   forces, requested, saturated, binding)
+    if status != 0:
+        raise TensionInfeasibleError(infeasible_message(status, np.unravel_index(row, batch) if batch else ()))
+    return TensionDistribution(forces.reshape(batch + (n + 1,)), requested.reshape(batch + (n + 1,)),
+                               saturated.reshape(batch + (n + 1,)), binding.reshape(batch))
+
+
+def infeasible_message(status: int, sample) -> str:
+    """The error of :func:`distribute_kernel`'s status (1: Z1 singular, 2 + j: cable j's direction)."""
+    where = tuple(int(i) for i in sample)
+    if status == 1:
+        return f"Z1 (right cables) is singular at sample {where}: pose outside the workspace"
+    return (f"-Z1^-1 Z2 has a non-positive entry for cable c{status - 1} at sample {where}: no positive "
+            "cable forces produce every torque there (pose outside the workspace)")
+
+
+@kernel
+def distribute_kernel(Z, gamma, lower, f_max, forces, requested, saturated) -> tuple:
+    """Eqs (63)-(65) for one sample; returns (status, binding cable).
+
+    Writes forces, requested (N+1,) N and saturated (N+1,) bool.  status 0: done; 1: Z1 singular;
+    2 + j: -Z1^-1 Z2 is not positive for cable j (0-based), nothing written.
+    """
+    n = Z.shape[0]
+    Z1 = np.empty((n, n))
+    sol = np.empty((n, 2))
+    for i in range(n):
+        for j in range(n):
+            Z1[i, j] = Z[i, j]
+        sol[i, 0] = gamma[i]
+        sol[i, 1] = -Z[i, n]
+    if not solve_in_place(Z1, sol):
+        return 1, 0
+    for j in range(n):                      # v = (-Z1^-1 Z2, 1) must point into positive forces
+        if not (sol[j, 1] > 0.0 and np.isfinite(sol[j, 1])):
+            return 2 + j, 0
+    binding, s = 0, -np.inf                 # the largest candidate, the first one on ties
+    for j in range(n + 1):
+        cand = (lower[j] - sol[j, 0]) / sol[j, 1] if j < n else lower[n]   # eq (65) met with equality
+        if cand > s:
+            s = cand
+            binding = j
+    for j in range(n + 1):
+        f = sol[j, 0] + sol[j, 1] * s if j < n else s
+        requested[j] = f
+        saturated[j] = f > f_max
+        forces[j] = min(f, f_max)
+    return 0, binding
+
+
+@kernel
+def _distribute_rows(Z, gamma, lower, f_max, forces, requested, saturated, binding):
+    for r in range(Z.shape[0]):
+        status, binding[r] = distribute_kernel(Z[r], gamma[r], lower[r], f_max, forces[r], requested[r],
+                                               saturated[r])
+        if status != 0:
+            return r, status
+    return -1, 0

@@ -76,11 +76,15 @@ def _check_number(obj, name: str) -> float:
     return float(v)
 
 
+def _is_integer(v) -> bool:
+    """A whole number (an int, or a finite float without fraction); bools and strings are not."""
+    return (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+            and math.isfinite(v) and int(v) == v)
+
+
 def _check_integer(obj, name: str, minimum: int, maximum: int | None = None) -> None:
     v = getattr(obj, name)
-    ok = (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-          and math.isfinite(v) and int(v) == v and v >= minimum and (maximum is None or v <= maximum))
-    if not ok:
+    if not (_is_integer(v) and v >= minimum and (maximum is None or v <= maximum)):
         limit = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
         raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be an integer {limit}, got {v!r}")
     object.__setattr__(obj, name, int(v))
@@ -333,7 +337,7 @@ class CableRoute:
             if p not in PASS_ROUTINGS:
                 raise ParameterError(f"{where}.passes[{i}]: joint {i + 1} must be 'strut' or 'side', got {p!r}")
         e = self.ends_at
-        if isinstance(e, bool) or not isinstance(e, (int, np.integer, float)) or not math.isfinite(e) or int(e) != e or e < 1:
+        if not _is_integer(e) or e < 1:
             raise ParameterError(f"{where}.ends_at: must be a joint number >= 1, got {e!r}")
         e = int(e)
         if len(passes) >= e:
@@ -354,7 +358,7 @@ class CableRoute:
             raise ParameterError(f"{where}.extra_turns: expected {len(passes)} values (one per passed joint), "
                                  f"got {len(turns)}")
         for i, (t, p) in enumerate(zip(turns, passes)):
-            if isinstance(t, bool) or not isinstance(t, (int, np.integer, float)) or not math.isfinite(t) or int(t) != t:
+            if not _is_integer(t):
                 raise ParameterError(f"{where}.extra_turns[{i}]: must be an integer, got {t!r}")
             if p == "side" and t != 1:
                 raise ParameterError(
@@ -367,7 +371,7 @@ class CableRoute:
                     f"turns there are not modelled (they only add a constant length), got {t!r}")
         row = self.row
         if row is not None:
-            if isinstance(row, bool) or not isinstance(row, (int, np.integer, float)) or not math.isfinite(row) or int(row) != row:
+            if not _is_integer(row):
                 raise ParameterError(f"{where}.row: must be an integer, got {row!r}")
             if row == 0:
                 raise ParameterError(f"{where}.row: row 0 is the plane of the bars, which has no pulleys; "

@@ -122,8 +122,8 @@ def test_law_1_has_no_friction_and_beliefs_are_separate(params):
     c = ComputedTorqueController(other, law=2)
     np.testing.assert_allclose(c.f_s, [14.42, 17.65, 18.77, 16.18])
     assert ControlLaw(3).default_cable_model is CableModel.VARIABLE
-    assert ComputedTorqueController(params, 3).estimator.elongation is not None
-    assert ComputedTorqueController(params, 2).estimator.elongation is None
+    assert ComputedTorqueController(params, 3).elongation is not None
+    assert ComputedTorqueController(params, 2).elongation is None
 
 
 def test_controller_without_pulleys(params):

@@ -10,7 +10,6 @@ diagnosis finds it through its regressor column (a constant per cable) -- two me
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -101,8 +100,9 @@ def test_registry_refuses_bad_effects(registered):
         E.Effects(backlash=CableBias())
 
 
-def _first(verdict):
-    return verdict[0] if isinstance(verdict, list) else verdict
+def _leader(verdict) -> str:
+    """The effect a verdict names first (a name, or a list of look-alikes that tie)."""
+    return verdict if isinstance(verdict, str) else verdict[0]
 
 
 def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, capsys):
@@ -115,13 +115,17 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     js, rep, ext = tmp_path / "d.json", tmp_path / "report", tmp_path / "model.json"
     assert main(["diagnose", str(path), "--steps", "1", "--json", str(js), "--report", str(rep),
                  "--extended", str(ext), "--quiet"]) == 0
-    # the leader; a per-spring spring_error (a right side spring runs along the right cables) may be
-    # reported with it as a look-alike the torque block cannot tell apart
-    assert re.search(r"verdict: (cable_bias|\['cable_bias')", capsys.readouterr().out)
+    # the leader of the verdict: since the open-world diagnosis (issue 12) spring_error is listed
+    # beside it (each adds to the other: a torque on the cable's joint) and leftover structure as
+    # 'unexplained'; the finding's fit and the extended model are the bias's
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("verdict: "))
+    assert line.startswith(("verdict: cable_bias", "verdict: ['cable_bias'"))
     finding = json.loads(js.read_text())["findings"][0]
-    assert _first(finding["effect"]) == "cable_bias" and finding["cables"] == [cable + 1]
+    assert _leader(finding["effect"]) == "cable_bias" and finding["cables"] == [cable + 1]
     fitted = finding["parameters"][f"bias({cable + 1})"]
-    # achieved: +11 % (seed 1), -19 % (seed 2); the bias trades off a little with the cable laws
+    # achieved: +11 % (seed 1), -19 % (seed 2): about +0.6 N on every seed tried (not understood yet;
+    # the leftover structure follows the sign of that cable's speed, so probably a trade-off with its
+    # dry friction)
     assert fitted["unit"] == "N" and fitted["value"] == pytest.approx(bias, rel=0.25)
     assert "cable_bias" in (rep / "report.md").read_text()
     gain = finding["gain"]["resimulation_holdout"]          # the extended plant (with the bias) re-simulates better
@@ -133,7 +137,8 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     # another seed through the Python API, with every registered effect a candidate
     cable, bias, path = bias_logs[2]
     diag = diagnose_log(path, settings=DiagnosisSettings(max_steps=1, resimulate=False, alpha_hat=False))
-    assert _first(diag.verdict) == "cable_bias" and diag.findings[0].cables == [cable + 1]
+    assert _leader(diag.verdict) == "cable_bias" and diag.findings[0].cables == [cable + 1]
+    assert diag.steps[0].chosen.term.name == "cable_bias"
     _, effects, rigid = plant_model(diag.steps[0].chosen.fit, default_params(3))
     assert not rigid and effects.cable_bias.per_cable(4)[cable] == pytest.approx(bias, rel=0.25)
 

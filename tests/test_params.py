@@ -152,3 +152,13 @@ def test_replay_with_parameters_of_another_n_names_both(tmp_path):
     with pytest.raises(P.ParameterError,
                        match=r"N = 2 joints and 3 cables but the log .*run\.mcap was recorded with N = 3 and 4"):
         replay(log, params=P.default_params(2))
+
+
+@pytest.mark.parametrize("field, value", [("ends_at", "inf"), ("ends_at", "nan"), ("row", "inf")])
+def test_routing_integers_that_are_not_finite_are_refused(tmp_path, field, value):
+    path = tmp_path / "p.toml"
+    path.write_text(f"[[routing.cables]]\nside = \"left\"\npasses = []\nends_at = 1\n{field} = {value}\n"
+                    if field != "ends_at" else
+                    f"[[routing.cables]]\nside = \"left\"\npasses = []\n{field} = {value}\n")
+    with pytest.raises(P.ParameterError, match=rf"routing\.cables\[0\]\.{field}: must be an? (integer|joint number)"):
+        P.load(path)

@@ -29,12 +29,52 @@ from typing import NamedTuple
 
 import numpy as np
 
-from neck_sim.analytic.geometry import _joint_local, _psi_derivatives, check_alpha, check_pose
+from neck_sim.analytic.geometry import (_joint_local, _psi_derivatives, _side_terms, check_alpha, check_pose,
+                                        side_terms_kernel)
+from neck_sim.jit import dual, kernel
 from neck_sim.params import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
                              SEG_RIGHT_SIDE, SEG_RIGHT_STRUT, NeckParams)
 
-__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "CableKinematics",
-           "cable_kinematics", "elongation", "motor_angles_rigid"]
+__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
+           "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]
+
+
+@dual
+def _segment_slopes(alpha, b, L, r, sides):
+    """First alpha-derivatives of the six segment kinds (``SEG_*`` codes 1..6, in that order), m/rad.
+
+    ``sides`` is :func:`neck_sim.analytic.geometry._side_terms` of the same angles; arrays (numpy)
+    or one joint's scalars (compiled twin).  psi' of eq (7) comes from the rod B->C of constant
+    length L; the mirrors are c'(alpha) = c(-alpha), d'(alpha) = d(-alpha).
+    """
+    s, c = np.sin(alpha / 2), np.cos(alpha / 2)
+    l_l, dl_l, l_r, dl_r = sides[0], sides[1], sides[3], sides[4]
+    t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
+    return (dl_l * t_l / l_l - r / 2,                                                   # (a), eq (3)
+            dl_r * t_r / l_r + r / 2,                                                   # (b), eq (4)
+            dl_l - r,                                                                   # (c), eq (5)
+            r * (2 * (0.5 * l_l * l_l + 0.5 * b * l_l * s - b * c * dl_l) / (L * L) - 1),  # (d), eq (6)
+            dl_r + r,                                                                   # mirror of (c)
+            r * (1 - 2 * (0.5 * l_r * l_r - 0.5 * b * l_r * s + b * c * dl_r) / (L * L)))  # mirror of (d)
+
+
+_slopes_kernel = _segment_slopes.jit
+if (SEG_LEFT_END, SEG_RIGHT_END, SEG_LEFT_SIDE, SEG_RIGHT_STRUT, SEG_RIGHT_SIDE, SEG_LEFT_STRUT) != (1, 2, 3, 4, 5, 6):
+    raise ImportError("neck_sim.params: segment codes changed; update _segment_slopes' order")
+
+
+@kernel
+def transmission_kernel(alpha, geometry, cases, Z) -> None:
+    """Z (N, m) of one pose alpha (N,) into ``Z``: geometry = (b, L, r) m, cases (m, N) the
+    routing's ``segment_cases``; the same slopes and gather as :func:`transmission_matrix`."""
+    b, L, r = geometry[0], geometry[1], geometry[2]
+    slope = np.zeros(N_SEGMENT_KINDS)
+    for i in range(alpha.shape[0]):
+        sl = _slopes_kernel(alpha[i], b, L, r, side_terms_kernel(alpha[i], b, L))
+        for kind in range(N_SEGMENT_KINDS - 1):
+            slope[kind + 1] = sl[kind]
+        for j in range(cases.shape[0]):
+            Z[i, j] = -slope[cases[j, i]]
 
 
 def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
@@ -49,42 +89,38 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     want = set(orders)
     half = alpha / 2
     s, c = np.sin(half), np.cos(half)
-    q = np.sqrt(L * L - (b * c) ** 2)
-    dq = (b * b / 2) * s * c / q
-    l_l, l_r = q - b * s, q + b * s
-    dl_l, dl_r = dq - (b / 2) * c, dq + (b / 2) * c
+    sides = _side_terms(alpha, b, L)
+    l_l, dl_l, ddl_l, l_r, dl_r, ddl_r = sides
     t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
     if 2 in want:
         jl = _joint_local(alpha, b, L)
-        ddl_l, ddl_r = jl.sides.ddl_l, jl.sides.ddl_r
     out = {k: np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1])) for k in want}
+    slopes = _segment_slopes(alpha, b, L, r, sides) if 1 in want else None
 
     def put(kind, val, d1, d2):
-        for order, v in ((0, val), (1, d1), (2, d2)):
+        for order, v in ((0, val), (2, d2)):
             if order in want:
                 out[order][..., kind, :] = v()
+        if 1 in want:
+            out[1][..., kind, :] = slopes[kind - 1]
 
     # Tangent from a pulley of radius r to the attachment point at distance l, eqs (3), (4);
     # sign -1 for case (a) (left cable, clockwise), +1 for case (b) (right cable) = (a) mirrored.
     for kind, l, dl, t, sign in ((SEG_LEFT_END, l_l, dl_l, t_l, -1.0), (SEG_RIGHT_END, l_r, dl_r, t_r, 1.0)):
-        ddl = (ddl_l if kind == SEG_LEFT_END else ddl_r) if 2 in want else None
-        put(kind, lambda: t - r * np.arctan2(t, r) + sign * r * half, lambda: dl * t / l + sign * r / 2,
+        ddl = ddl_l if kind == SEG_LEFT_END else ddl_r
+        put(kind, lambda: t - r * np.arctan2(t, r) + sign * r * half, None,
             lambda: ddl * t / l + (dl * r) ** 2 / (t * l * l) if r > 0 else ddl)
     # Case (c), eq (5), and its mirror c'(alpha) = c(-alpha) = l_r + r alpha (the extra full turn
     # on the top pulley keeps the cable on it; it adds a constant only).
-    put(SEG_LEFT_SIDE, lambda: l_l - r * alpha, lambda: dl_l - r, lambda: ddl_l)
-    put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, lambda: dl_r + r, lambda: ddl_r)
+    put(SEG_LEFT_SIDE, lambda: l_l - r * alpha, None, lambda: ddl_l)
+    put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, None, lambda: ddl_r)
     # Case (d), eq (6): psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant
     # length L.  Its mirror d'(alpha) = d(-alpha), with psi(-alpha) = atan2(l_r c, l_r s - b).
     ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else None
-    put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha),
-        lambda: r * (2 * (0.5 * l_l * l_l + 0.5 * b * l_l * s - b * c * dl_l) / (L * L) - 1),
-        lambda: 2 * r * ddpsi)
+    put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha), None, lambda: 2 * r * ddpsi)
     if left_strut:
         ddpsi_m = _psi_derivatives(_joint_local(-alpha, b, L), b, L)[1] if 2 in want else None
-        put(SEG_LEFT_STRUT, lambda: r * (2 * np.arctan2(l_r * c, l_r * s - b) + alpha),
-            lambda: r * (1 - 2 * (0.5 * l_r * l_r - 0.5 * b * l_r * s + b * c * dl_r) / (L * L)),
-            lambda: 2 * r * ddpsi_m)
+        put(SEG_LEFT_STRUT, lambda: r * (2 * np.arctan2(l_r * c, l_r * s - b) + alpha), None, lambda: 2 * r * ddpsi_m)
     return out
 
 

@@ -27,12 +27,15 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
-from neck_sim.analytic.geometry import _cross, _joint_local, _vec2, check_alpha, check_pose, forward_kinematics
+from neck_sim.analytic.geometry import (check_alpha, check_pose, corner_terms_kernel, forward_kinematics,
+                                        side_terms_kernel)
+from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
-__all__ = ["LinkageDynamics", "linkage_dynamics", "mass_matrix", "bias_forces", "gravity_spring_torque",
-           "potential_energy", "kinetic_energy", "motor_friction", "cable_tension", "cable_stiffness",
-           "static_elongation", "elongation_step", "elongation_series", "rigid_acceleration",
+__all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
+           "bias_forces", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
+           "motor_friction", "cable_tension", "cable_stiffness", "static_elongation", "elongation_step",
+           "elongation_series", "rigid_acceleration",
            "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
 
 
@@ -45,96 +48,140 @@ class LinkageDynamics(NamedTuple):
     g: np.ndarray
 
 
-def _exclusive_cumsum(x: np.ndarray, axis: int) -> np.ndarray:
-    return np.cumsum(x, axis=axis) - x
+def linkage_constants(params: NeckParams) -> np.ndarray:
+    """The linkage's constants as one float vector for :func:`linkage_kernel`.
+
+    [b, L, diagonal mass, bar mass, gravity, payload mass, spring rest length, k_1 .. k_N].
+    """
+    g, inert, spr = params.geometry, params.inertia, params.springs
+    k = np.broadcast_to(np.asarray(spr.stiffness, dtype=float), (g.n_joints,))
+    return np.concatenate([[g.b, g.L, inert.diagonal_mass, inert.bar_mass, inert.gravity,
+                            inert.payload_mass, spr.rest_length], k])
+
+
+@kernel
+def linkage_kernel(a, ad, const, M, c, G) -> None:
+    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`linkage_dynamics`).
+
+    Bodies of joint i: diagonal AD, diagonal BC, top bar CD (slender rods, I = m l^2 / 12).  Frame
+    i has angle phi_i = sum_{k<i} alpha_k and origin p_i; the top-bar midpoint m_i(alpha_i) is
+    the origin of frame i+1.  A body point q(alpha_i) of joint i has the velocity Jacobian
+    J = J_{p_i} + S R q [k < i] + R q' [k = i] and the velocity-product acceleration
+    h = h_{p_i} - phi_dot^2 R q + 2 phi_dot alpha_dot_i S R q' + alpha_dot_i^2 R q''; then
+    M_m = sum m J^T J + I J_phi^T J_phi, c_m = sum m J^T h + I J_phi^T h_phi and g is the gradient of
+    m g y plus the side springs' potential.  An optional payload is a point mass at the head's
+    bar centre.
+    """
+    n = a.shape[0]
+    b, L = const[0], const[1]
+    mass = (const[2], const[2], const[3])
+    inertia = (const[2] * L * L / 12.0, const[2] * L * L / 12.0, const[3] * b * b / 12.0)
+    grav, payload, l0 = const[4], const[5], const[6]
+    M[:, :] = 0.0
+    c[:] = 0.0
+    G[:] = 0.0
+    Jo = np.zeros((2, n))             # frame-origin Jacobian J_{p_i}
+    hox, hoy = 0.0, 0.0               # frame-origin acceleration h_{p_i}
+    Jx = np.empty(n)
+    Jy = np.empty(n)
+    Jr = np.empty(n)
+    phi, phid = 0.0, 0.0
+    ax, bx = -b / 2, b / 2
+    for i in range(n):
+        sd = side_terms_kernel(a[i], b, L)
+        k = corner_terms_kernel(a[i], b, L, sd)
+        cx, cy, dcx, dcy, ddcx, ddcy = k[0], k[1], k[2], k[3], k[4], k[5]
+        dx, dy, ddx, ddy, dddx, dddy = k[6], k[7], k[8], k[9], k[10], k[11]
+        cp, sp = np.cos(phi), np.sin(phi)
+        w = ad[i]
+        # the three bodies: q, q', q'' in the joint frame and the rotation rate d beta / d alpha_i
+        for body in range(3):
+            if body == 0:             # diagonal A-D
+                qx, qy, dqx, dqy, ddqx, ddqy = (ax + dx) / 2, dy / 2, ddx / 2, ddy / 2, dddx / 2, dddy / 2
+                db = ((dx - ax) * ddy - dy * ddx) / (L * L)
+                ddb = ((dx - ax) * dddy - dy * dddx) / (L * L)
+            elif body == 1:           # diagonal B-C
+                qx, qy, dqx, dqy, ddqx, ddqy = (bx + cx) / 2, cy / 2, dcx / 2, dcy / 2, ddcx / 2, ddcy / 2
+                db = ((cx - bx) * dcy - cy * dcx) / (L * L)
+                ddb = ((cx - bx) * ddcy - cy * ddcx) / (L * L)
+            else:                     # top bar C-D
+                qx, qy = (cx + dx) / 2, (cy + dy) / 2
+                dqx, dqy = (dcx + ddx) / 2, (dcy + ddy) / 2
+                ddqx, ddqy = (ddcx + dddx) / 2, (ddcy + dddy) / 2
+                db, ddb = 1.0, 0.0
+            rqx, rqy = cp * qx - sp * qy, sp * qx + cp * qy
+            rdx, rdy = cp * dqx - sp * dqy, sp * dqx + cp * dqy
+            rddx, rddy = cp * ddqx - sp * ddqy, sp * ddqx + cp * ddqy
+            for kk in range(n):
+                if kk < i:
+                    Jx[kk] = Jo[0, kk] - rqy
+                    Jy[kk] = Jo[1, kk] + rqx
+                    Jr[kk] = 1.0
+                elif kk == i:
+                    Jx[kk] = rdx
+                    Jy[kk] = rdy
+                    Jr[kk] = db
+                else:
+                    Jx[kk] = 0.0
+                    Jy[kk] = 0.0
+                    Jr[kk] = 0.0
+            hx = hox - phid * phid * rqx - 2 * phid * w * rdy + w * w * rddx
+            hy = hoy - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy
+            hr = ddb * w * w
+            m, I = mass[body], inertia[body]
+            for kk in range(i + 1):
+                for ll in range(i + 1):
+                    M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
+                c[kk] += m * (Jx[kk] * hx + Jy[kk] * hy) + I * Jr[kk] * hr
+                G[kk] += grav * m * Jy[kk]
+            if body == 2 and i == n - 1 and payload > 0:      # point mass at the head's bar centre
+                for kk in range(n):
+                    for ll in range(n):
+                        M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
+                    c[kk] += payload * (Jx[kk] * hx + Jy[kk] * hy)
+                    G[kk] += payload * grav * Jy[kk]
+        G[i] += const[7 + i] * ((sd[0] - l0) * sd[1] + (sd[3] - l0) * sd[4])
+        # frame i+1: origin p_i + R(phi_i) m_i with m_i the top-bar midpoint
+        mx, my = (cx + dx) / 2, (cy + dy) / 2
+        dmx, dmy = (dcx + ddx) / 2, (dcy + ddy) / 2
+        ddmx, ddmy = (ddcx + dddx) / 2, (ddcy + dddy) / 2
+        rmx, rmy = cp * mx - sp * my, sp * mx + cp * my
+        rdmx, rdmy = cp * dmx - sp * dmy, sp * dmx + cp * dmy
+        for kk in range(i):
+            Jo[0, kk] -= rmy
+            Jo[1, kk] += rmx
+        Jo[0, i] += rdmx
+        Jo[1, i] += rdmy
+        hox += -phid * phid * rmx - 2 * phid * w * rdmy + w * w * (cp * ddmx - sp * ddmy)
+        hoy += -phid * phid * rmy + 2 * phid * w * rdmx + w * w * (sp * ddmx + cp * ddmy)
+        phi += a[i]
+        phid += w
+
+
+@kernel
+def _linkage_rows(a, ad, const, M, c, G) -> None:
+    for r in range(a.shape[0]):
+        linkage_kernel(a[r], ad[r], const, M[r], c[r], G[r])
 
 
 def linkage_dynamics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> LinkageDynamics:
     """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched over leading axes.
 
-    Frame i (base bar of joint i) has world angle phi_i = sum_{k<i} alpha_k and origin p_i; the
-    top-bar midpoint m_i(alpha_i) of joint i is the origin of frame i+1.  The recursion
-    p_{i+1} = p_i + R(phi_i) m_i gives, as exclusive cumulative sums over joints, the frame
-    Jacobians J_{p_i} and velocity-product accelerations h_{p_i}; a body point q(alpha_i) of joint i
-    then has J = J_{p_i} + S R q [k < i] + R q' [k = i] and
-    h = h_{p_i} - phi_dot^2 R q + 2 phi_dot alpha_dot_i S R q' + alpha_dot_i^2 R q''.
+    alpha, alpha_dot (..., N) rad, rad/s; M_m (..., N, N) kg m^2, c_m, g (..., N) N m
+    (:func:`linkage_kernel`, one sample at a time).
     """
-    g = params.geometry
-    n = g.n_joints
+    n = params.n_joints
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     a, ad = np.broadcast_arrays(a, ad)
-    b, L = g.b, g.L
-    inert = params.inertia
-    jl = _joint_local(a, b, L)                                    # corners per joint, (..., N, 2)
-    A = np.array([-b / 2, 0.0])
-    B = np.array([b / 2, 0.0])
-    m, dm, ddm = (jl.C + jl.D) / 2, (jl.dC + jl.dD) / 2, (jl.ddC + jl.ddD) / 2
-    # moving bodies of each joint: diagonal AD, diagonal BC, top bar CD -> axis -2 of size 3
-    q = np.stack([(A + jl.D) / 2, (B + jl.C) / 2, m], -2)          # (..., N, 3, 2)
-    dq = np.stack([jl.dD / 2, jl.dC / 2, dm], -2)
-    ddq = np.stack([jl.ddD / 2, jl.ddC / 2, ddm], -2)
-    one = np.ones_like(a)
-    dbeta = np.stack([_cross(jl.D - A, jl.dD) / L ** 2, _cross(jl.C - B, jl.dC) / L ** 2, one], -1)
-    ddbeta = np.stack([_cross(jl.D - A, jl.ddD) / L ** 2, _cross(jl.C - B, jl.ddC) / L ** 2, 0 * one], -1)
-    mass = np.array([inert.diagonal_mass, inert.diagonal_mass, inert.bar_mass])
-    rot_inertia = mass * np.array([L, L, b]) ** 2 / 12.0
-
-    phi = _exclusive_cumsum(a, -1)
-    phi_dot = _exclusive_cumsum(ad, -1)
-    cphi, sphi = np.cos(phi), np.sin(phi)
-
-    def rot(v, extra=0):  # R(phi_i) v for v of shape (..., N, [3,] 2)
-        cc = cphi.reshape(cphi.shape + (1,) * extra)
-        ss = sphi.reshape(sphi.shape + (1,) * extra)
-        return _vec2(cc * v[..., 0] - ss * v[..., 1], ss * v[..., 0] + cc * v[..., 1])
-
-    def turn(v):  # S v: rotation by +90 deg
-        return _vec2(-v[..., 1], v[..., 0])
-
-    Rm, Rdm, Rddm = rot(m), rot(dm), rot(ddm)
-    lt = np.tril(np.ones((n, n)), -1)                             # lt[i, k] = 1 if k < i
-    eye = np.eye(n)
-    # increments of the frame-origin Jacobian and bias from joint j to j+1
-    dJ = turn(Rm)[..., :, :, None] * lt[:, None, :] + Rdm[..., :, :, None] * eye[:, None, :]   # (..., N, 2, N)
-    dh = ((-phi_dot ** 2)[..., None] * Rm + (2 * phi_dot * ad)[..., None] * turn(Rdm)
-          + (ad ** 2)[..., None] * Rddm)                                                       # (..., N, 2)
-    J_o = _exclusive_cumsum(dJ, -3)
-    h_o = _exclusive_cumsum(dh, -2)
-
-    Rq, Rdq, Rddq = rot(q, 1), rot(dq, 1), rot(ddq, 1)            # (..., N, 3, 2)
-    pd, adn = phi_dot[..., None, None], ad[..., None, None]
-    h = h_o[..., :, None, :] - pd ** 2 * Rq + 2 * pd * adn * turn(Rdq) + adn ** 2 * Rddq          # (..., N, 3, 2)
-    hphi = ddbeta * (ad ** 2)[..., None]                                                          # (..., N, 3)
-
-    # Mass-weighted velocity rows of every body (x, y, rotation): M = W^T W, c = W^T h_w.
     batch = a.shape[:-1]
-    w_lin = np.sqrt(mass)[:, None, None]
-    w_rot = np.sqrt(rot_inertia)[:, None]
-    W = np.empty(batch + (n, 3, 3, n))
-    J = W[..., :2, :]
-    np.add(J_o[..., :, None, :, :], turn(Rq)[..., None] * lt[:, None, None, :], out=J)
-    J += Rdq[..., None] * eye[:, None, None, :]                   # J: (..., N, 3, 2, N), unweighted here
-    G = inert.gravity * np.einsum("...ibk,b->...k", J[..., 1, :], mass)
-    Jh = J[..., n - 1, 2, :, :].copy()                            # head bar centre, for a payload
-    J *= w_lin
-    W[..., 2, :] = (lt[:, None, :] + dbeta[..., None] * eye[:, None, :]) * w_rot
-    hw = np.concatenate([h * w_lin[..., 0], (hphi * w_rot[:, 0])[..., None]], -1)
-    W = W.reshape(batch + (9 * n, n))
-    Wt = np.swapaxes(W, -1, -2)
-    M = Wt @ W
-    c = (Wt @ hw.reshape(batch + (9 * n, 1)))[..., 0]
-    if inert.payload_mass > 0:                                    # point mass at the head's bar centre
-        hh = h[..., n - 1, 2, :]
-        M = M + inert.payload_mass * np.einsum("...xk,...xl->...kl", Jh, Jh)
-        c = c + inert.payload_mass * np.einsum("...xk,...x->...k", Jh, hh)
-        G = G + inert.payload_mass * inert.gravity * Jh[..., 1, :]
-
-    sd = jl.sides
-    k = np.asarray(params.springs.stiffness)
-    l0 = params.springs.rest_length
-    G = G + k * ((sd.l_l - l0) * sd.dl_l + (sd.l_r - l0) * sd.dl_r)
-    return LinkageDynamics(M, c, G)
+    rows = int(np.prod(batch))
+    M = np.empty((rows, n, n))
+    c = np.empty((rows, n))
+    G = np.empty((rows, n))
+    _linkage_rows(np.ascontiguousarray(a.reshape(rows, n)), np.ascontiguousarray(ad.reshape(rows, n)),
+                  linkage_constants(params), M, c, G)
+    return LinkageDynamics(M.reshape(batch + (n, n)), c.reshape(batch + (n,)), G.reshape(batch + (n,)))
 
 
 def mass_matrix(alpha, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
@@ -192,13 +239,22 @@ def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
     return 0.5 * np.einsum("...i,...ij,...j->...", ad, M, ad)
 
 
+@dual
+def arctan_friction(theta_dot, c_s, f_s):
+    """Arctan dry friction of eq (37), (2/pi) arctan(c_s theta_dot) f_s, as a force along the cable (N).
+
+    theta_dot rad/s, c_s s/rad, f_s N; arrays broadcast (numpy) or scalars (compiled twin ``.jit``).
+    """
+    return (2 / np.pi) * np.arctan(c_s * theta_dot) * f_s
+
+
 def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
     """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., m), N.
 
     Expressed as a force along the cable; ``f_s`` defaults to the plant's ``params.friction.f_s``.
     """
     fs = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
-    return (2 / np.pi) * np.arctan(params.friction.c_s * np.asarray(theta_dot, dtype=float)) * fs
+    return arctan_friction(np.asarray(theta_dot, dtype=float), params.friction.c_s, fs)
 
 
 def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
@@ -222,10 +278,15 @@ def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> n
     return np.where(x > 0, np.maximum(t, 0.0), 0.0)
 
 
+@dual
+def _stiffness(tension, k, lam):
+    return k + lam * np.maximum(tension, 0.0)
+
+
 def cable_stiffness(tension, k, lam) -> np.ndarray:
     """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
     (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
-    return np.asarray(k, dtype=float) + np.asarray(lam, dtype=float) * np.maximum(np.asarray(tension, dtype=float), 0.0)
+    return _stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float), np.asarray(lam, dtype=float))
 
 
 def static_elongation(tension, k, lam) -> np.ndarray:
@@ -236,12 +297,18 @@ def static_elongation(tension, k, lam) -> np.ndarray:
     return np.maximum(np.asarray(tension, dtype=float), 0.0) / cable_stiffness(tension, k, lam)
 
 
+@dual
+def _euler_elongation(x, tension, dt, c_a, stiffness):
+    return x + dt / c_a * (tension - stiffness * x)
+
+
 def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
     """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (m,) m.
 
     ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
-    applied during it, ``dt`` s, ``c_a`` N s/m > 0."""
-    return x + dt / c_a * (tension - cable_stiffness(tension, k, lam) * x)
+    applied during it, ``dt`` s, ``c_a`` N s/m > 0.  The compiled control step calls the same
+    formulas' twins (``_stiffness.jit``, ``_euler_elongation.jit``)."""
+    return _euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
 
 
 def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:

@@ -13,9 +13,11 @@ import numpy as np
 from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
 from neck_sim.analytic.dynamics import static_elongation
 from neck_sim.analytic.geometry import check_cables, check_pose
+from neck_sim.jit import kernel, solve_in_place
 from neck_sim.params import SEG_RIGHT_END, SEG_RIGHT_STRUT, NeckParams
 
-__all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "cable_stretch_at_f_max",
+__all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
+           "cable_stretch_at_f_max",
            "estimate_alpha_pinv"]
 
 
@@ -83,12 +85,43 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
     return alpha
 
 
+@kernel
+def pinv_increment_kernel(Z, rhs, out) -> bool:
+    """out = (Z Z^T)^{-1} Z rhs for one sample: Z (N, N+1) m, rhs (N+1,) m; False if Z Z^T is singular."""
+    n = Z.shape[0]
+    zz = np.empty((n, n))
+    y = np.empty((n, 1))
+    for i in range(n):
+        acc = 0.0
+        for j in range(Z.shape[1]):
+            acc += Z[i, j] * rhs[j]
+        y[i, 0] = acc
+        for k in range(n):
+            acc = 0.0
+            for j in range(Z.shape[1]):
+                acc += Z[i, j] * Z[k, j]
+            zz[i, k] = acc
+    ok = solve_in_place(zz, y)
+    for i in range(n):
+        out[i] = y[i, 0]
+    return ok
+
+
+@kernel
+def _pinv_rows(Z, rhs, out) -> int:
+    for r in range(Z.shape[0]):
+        if not pinv_increment_kernel(Z[r], rhs[r], out[r]):
+            return r
+    return -1
+
+
 def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None, *,
                    allow_outside_range: bool = False) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
     Needs at least as many cables as joints (m >= N), so that Z has full row rank and
-    (Z^T)^+ = (Z Z^T)^{-1} Z: with fewer cables the motor angles do not determine the pose.
+    (Z^T)^+ = (Z Z^T)^{-1} Z (:func:`pinv_increment_kernel`): with fewer cables the motor angles do
+    not determine the pose.
     """
     n, m = params.n_joints, params.n_cables
     if m < n:
@@ -100,8 +133,16 @@ def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None, *,
     if d_elongation is not None:
         rhs = rhs - check_cables(d_elongation, m, "d_elongation")
     Z = transmission_matrix(a, params, allow_outside_range=True)
-    zz = Z @ np.swapaxes(Z, -1, -2)
-    return np.linalg.solve(zz, np.einsum("...ij,...j->...i", Z, rhs)[..., None])[..., 0]
+    batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
+    rows = int(np.prod(batch))
+    Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
+    rhs = np.ascontiguousarray(np.broadcast_to(rhs, batch + (m,))).reshape(rows, m)
+    out = np.empty((rows, n))
+    bad = _pinv_rows(Z, rhs, out)
+    if bad >= 0:
+        where = np.unravel_index(bad, batch) if batch else ()
+        raise UnreachableError(f"alpha_hat: Z Z^T is singular at sample {where} (pose outside the workspace)")
+    return out.reshape(batch + (n,))
 
 
 def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:

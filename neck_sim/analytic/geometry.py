@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from neck_sim.jit import dual
 from neck_sim.params import NeckParams
 
 __all__ = ["SideLengths", "side_lengths", "joint_corners", "psi", "Kinematics",
@@ -80,14 +81,23 @@ def side_lengths(alpha, params: NeckParams) -> SideLengths:
     return _sides(np.asarray(alpha, dtype=float), g.b, g.L)
 
 
-def _sides(a: np.ndarray, b: float, L: float) -> SideLengths:
+@dual
+def _side_terms(a, b, L):
+    """(l_l, dl_l, ddl_l, l_r, dl_r, ddl_r) of eqs (1), (2) for angles a (array, or scalar compiled)."""
     s, c = np.sin(a / 2), np.cos(a / 2)
     q = np.sqrt(L * L - (b * c) ** 2)
     u = 0.5 * np.sin(a)                       # = s c
     dq = b * b * u / (2 * q)
     ddq = b * b * np.cos(a) / (4 * q) - b ** 4 * u * u / (4 * q ** 3)
-    return SideLengths(q - b * s, dq - b * c / 2, ddq + b * s / 4,
-                       q + b * s, dq + b * c / 2, ddq - b * s / 4)
+    return (q - b * s, dq - b * c / 2, ddq + b * s / 4,
+            q + b * s, dq + b * c / 2, ddq - b * s / 4)
+
+
+side_terms_kernel = _side_terms.jit
+
+
+def _sides(a: np.ndarray, b: float, L: float) -> SideLengths:
+    return SideLengths(*_side_terms(a, b, L))
 
 
 def rotation(phi) -> np.ndarray:
@@ -122,19 +132,32 @@ def _vec2(x, y) -> np.ndarray:
     return out
 
 
-def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
-    sd = _sides(a, b, L)
+@dual
+def _corner_terms(a, b, L, sides):
+    """C, C', C'', D, D', D'' of one joint in its base frame, as 12 coordinates (x, y of each).
+
+    ``sides`` is :func:`_side_terms` of the same angles.
+    """
     s, c = np.sin(a / 2), np.cos(a / 2)
     ca, sa = np.cos(a), np.sin(a)
-    ll, dll, ddll = sd.l_l, sd.dl_l, sd.ddl_l
+    ll, dll, ddll = sides[0], sides[1], sides[2]
     # C = A + l_l e with side direction e = (-s, c); D = C + b (cos a, sin a)
     cx, cy = -b / 2 - ll * s, ll * c
     dcx, dcy = -dll * s - ll * c / 2, dll * c - ll * s / 2
     ddcx = -ddll * s - dll * c + ll * s / 4
     ddcy = ddll * c - dll * s - ll * c / 4
-    return _JointLocal(sd, _vec2(cx, cy), _vec2(dcx, dcy), _vec2(ddcx, ddcy),
-                       _vec2(cx + b * ca, cy + b * sa), _vec2(dcx - b * sa, dcy + b * ca),
-                       _vec2(ddcx - b * ca, ddcy - b * sa))
+    return (cx, cy, dcx, dcy, ddcx, ddcy,
+            cx + b * ca, cy + b * sa, dcx - b * sa, dcy + b * ca, ddcx - b * ca, ddcy - b * sa)
+
+
+corner_terms_kernel = _corner_terms.jit
+
+
+def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
+    sides = _side_terms(a, b, L)
+    k = _corner_terms(a, b, L, sides)
+    return _JointLocal(SideLengths(*sides), _vec2(k[0], k[1]), _vec2(k[2], k[3]), _vec2(k[4], k[5]),
+                       _vec2(k[6], k[7]), _vec2(k[8], k[9]), _vec2(k[10], k[11]))
 
 
 def joint_corners(alpha, params: NeckParams) -> np.ndarray:

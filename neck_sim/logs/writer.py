@@ -21,9 +21,13 @@ import sys
 import weakref
 
 import numpy as np
+import orjson
+from mcap.opcode import Opcode
+from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from neck_sim.atomic import discard, output_error, publish, temp_file_beside
+from neck_sim.jit import kernel
 from neck_sim.logs import foxglove
 from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TopicSpec, neck_metadata,
                                     topic_schema)
@@ -32,8 +36,53 @@ from neck_sim.params import NeckParams, default_params
 __all__ = ["LogWriter", "MJCF_ATTACHMENT"]
 
 MJCF_ATTACHMENT = "neck.xml"
-_DUMPS = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 _MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 ns)
+_PENDING_ROWS = 256          # samples buffered by the per-sample methods before encoding
+_MESSAGE_HEADER = 31         # opcode (1) + record length (8) + channel, sequence, log and publish time (22)
+
+
+@kernel
+def _message_records(numbers, pieces, piece_start, channel, log_ns, out, offsets) -> int:
+    """MCAP Message records of T JSON payloads into ``out``; returns the bytes written.
+
+    ``numbers`` is the JSON text of a (T, F) array (``[[a,b],[c,d]]``), ``pieces`` the F + 1 constant
+    parts of a payload (``{"t":``, ``,"theta":[``, ``,``, ..., ``]}``) joined, ``piece_start`` (F + 2,)
+    their offsets.  Record r starts at ``offsets[r]``; its payload interleaves pieces and numbers.
+    """
+    n_fields = piece_start.shape[0] - 2
+    pos = 2                                   # after "[["
+    w = 0
+    for r in range(log_ns.shape[0]):
+        offsets[r] = w
+        head = w
+        out[w] = 0x05                         # opcode: Message
+        w += 9                                # record length filled in below
+        out[w] = channel & 0xFF
+        out[w + 1] = (channel >> 8) & 0xFF
+        for b in range(4):                    # sequence 0
+            out[w + 2 + b] = 0
+        t = log_ns[r]
+        for b in range(8):                    # log_time, publish_time (= log_time)
+            byte = (t >> (8 * b)) & 0xFF
+            out[w + 6 + b] = byte
+            out[w + 14 + b] = byte
+        w += 22
+        for f in range(n_fields + 1):
+            for i in range(piece_start[f], piece_start[f + 1]):
+                out[w] = pieces[i]
+                w += 1
+            if f == n_fields:
+                break
+            while numbers[pos] != 44 and numbers[pos] != 93:     # up to "," or "]"
+                out[w] = numbers[pos]
+                w += 1
+                pos += 1
+            pos += 1
+        pos += 2                              # "],[" between rows: "]" was taken, skip ",["
+        length = w - head - 9
+        for b in range(8):
+            out[head + 1 + b] = (length >> (8 * b)) & 0xFF
+    return w
 
 
 def _version(package: str) -> str:
@@ -58,6 +107,25 @@ def _run_record(run_info: dict | None) -> dict[str, str]:
 def _jsonable(value):
     """numpy scalars/arrays as numbers/lists, anything else by its str()."""
     return value.tolist() if hasattr(value, "tolist") else str(value)
+
+
+def _chunk_parts(writer: Writer):
+    """(chunk builder, statistics, maybe-finalize) of an mcap Writer, or None if its internals differ."""
+    parts = tuple(getattr(writer, f"_Writer__{name}", None)
+                  for name in ("chunk_builder", "statistics", "maybe_finalize_chunk"))
+    return None if any(p is None for p in parts) else parts
+
+
+class _PackedMessageIndex(MessageIndex):
+    """A MessageIndex record that serialises its (log_time, offset) pairs in one numpy call
+    (the library packs each number separately: about 6 us per message)."""
+
+    def write(self, stream) -> None:
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write2(self.channel_id)
+        stream.write4(len(self.records) * 16)
+        stream.write(np.asarray(self.records, dtype="<u8").reshape(-1).tobytes())
+        stream.finish_record()
 
 
 class LogWriter:
@@ -96,6 +164,9 @@ class LogWriter:
         self._last_ns: dict[str, int] = {}
         self._viz_next: dict[str, int] = {}
         self._viz: dict[str, list] = {"truth": [], "estimate": [], "camera": []}
+        self._pending: dict[str, list] = {}
+        self._pending_rows = 0
+        self._chunk_size = chunk_size
         self._closed = False
         self.counts: dict[str, int] = {}
         self._writer.add_metadata(NECK_RECORD, neck_metadata(self.params))
@@ -121,6 +192,8 @@ class LogWriter:
         self._finalizer.detach()
         try:
             try:
+                for name in list(self._pending):
+                    self._flush_pending(name)
                 self._write_visualization()
                 self._writer.finish()
                 self._fh.flush()
@@ -179,13 +252,16 @@ class LogWriter:
         return ch
 
     def _layout(self, spec: TopicSpec):
-        """(field lengths, %-format of one message) of a topic, built once."""
+        """(field lengths, payload pieces joined, piece offsets) of a topic, built once."""
         layout = self._layouts.get(spec.name)
         if layout is None:
             lengths = spec.lengths(self._n, self.params.n_cables)
-            # %r of a Python float is its shortest round-trip repr: the JSON number json.dumps writes.
-            parts = ['{"t":%r'] + [f',"{f}":[' + ",".join(["%r"] * k) + "]" for f, k in zip(spec.field_names, lengths)]
-            layout = self._layouts[spec.name] = (lengths, "".join(parts) + "}")
+            pieces = ['{"t":']
+            for i, (f, k) in enumerate(zip(spec.field_names, lengths)):
+                pieces += [("]" if i else "") + f',"{f}":['] + [","] * (k - 1)
+            pieces.append("]}")
+            starts = np.cumsum([0] + [len(p) for p in pieces]).astype(np.int64)
+            layout = self._layouts[spec.name] = (lengths, np.frombuffer("".join(pieces).encode(), np.uint8), starts)
         return layout
 
     def _write(self, spec: TopicSpec, t: float, arrays) -> int:
@@ -201,7 +277,7 @@ class LogWriter:
         last = self._last_ns.get(spec.topic)
         if last is not None and ns <= last:
             raise ValueError(f"{spec.topic}: time must increase, got t = {t!r} s after t = {last * 1e-9!r} s")
-        lengths, fmt = self._layout(spec)
+        lengths = self._layout(spec)[0]
         values = [t]
         for name, n, value in zip(spec.field_names, lengths, arrays):
             arr = np.asarray(value, dtype=float)
@@ -211,14 +287,130 @@ class LogWriter:
             if not all(map(math.isfinite, row)):
                 raise ValueError(f"{spec.topic}: {name} contains NaN or infinity at t = {t!r} s")
             values += row
-        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
-        try:
-            self._writer.add_message(ch, ns, (fmt % tuple(values)).encode(), ns)
-        except OSError as exc:
-            raise output_error(self.path, exc) from None
+        self._pending.setdefault(spec.name, []).append((ns, values))
+        self._pending_rows += 1
         self._last_ns[spec.topic] = ns
-        self.counts[spec.topic] += 1
+        self.counts[self._register(spec)] += 1
+        if self._pending_rows >= _PENDING_ROWS:     # all topics together: chunks stay short in time
+            for pending in list(self._pending):
+                self._flush_pending(pending)
         return ns
+
+    def write_batch(self, name: str, t, *fields) -> None:
+        """Many samples of one contract topic at once: ``t`` (T,) s increasing, then the topic's
+        fields in contract order, each (T, n).  Same checks as the per-sample methods."""
+        spec = TOPIC_BY_NAME[name]
+        if self._closed:
+            raise ValueError(f"{self.path}: log already closed")
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1:
+            raise ValueError(f"{spec.topic}: t must have shape (T,), got {t.shape}")
+        if not np.all(np.isfinite(t) & (t >= 0)):
+            raise ValueError(f"{spec.topic}: time t must be finite and >= 0")
+        if len(t) and t.max() * 1e9 > _MAX_NS:
+            raise ValueError(f"{spec.topic}: time t = {float(t.max())!r} s is beyond MCAP's nanosecond timestamps")
+        lengths = self._layout(spec)[0]
+        if len(fields) != len(lengths):
+            raise ValueError(f"{spec.topic}: expected fields {spec.field_names}, got {len(fields)} arrays")
+        cols = [t[:, None]]
+        for fname, n, value in zip(spec.field_names, lengths, fields):
+            arr = np.asarray(value, dtype=float)
+            if arr.shape != (len(t), n):
+                raise ValueError(f"{spec.topic}: {fname} must have shape ({len(t)}, {n}), got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                bad = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+                raise ValueError(f"{spec.topic}: {fname} contains NaN or infinity at t = {float(t[bad])!r} s")
+            cols.append(arr)
+        if len(t) == 0:
+            return
+        self._flush_pending(name)
+        ns = np.rint(t * 1e9).astype(np.int64)
+        last = self._last_ns.get(spec.topic)
+        steps = np.diff(ns, prepend=ns[0] - 1 if last is None else last)
+        if np.any(steps <= 0):
+            i = int(np.argmax(steps <= 0))
+            raise ValueError(f"{spec.topic}: time must increase, got t = {float(t[i])!r} s after an earlier sample")
+        self._encode(spec, np.concatenate(cols, axis=1), ns)
+        self._last_ns[spec.topic] = int(ns[-1])
+        self.counts[spec.topic] += len(t)
+        if spec.name in self._viz:
+            first = cols[1]
+            for i in self._visual_samples(spec.name, ns):
+                self._viz[spec.name].append((int(ns[i]), first[i]))
+
+    def _register(self, spec: TopicSpec) -> str:
+        self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
+        return spec.topic
+
+    def _flush_pending(self, name: str) -> None:
+        rows = self._pending.pop(name, None)
+        if rows:
+            self._pending_rows -= len(rows)
+            spec = TOPIC_BY_NAME[name]
+            self._encode(spec, np.array([v for _, v in rows]), np.array([ns for ns, _ in rows], dtype=np.int64))
+
+    def _encode(self, spec: TopicSpec, values: np.ndarray, ns: np.ndarray) -> None:
+        """JSON payloads of (T, F) checked values as MCAP records (numbers by orjson: shortest
+        round-trip text, what json.dumps writes up to exponent style), appended to the open chunk."""
+        _, pieces, starts = self._layout(spec)
+        ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
+        numbers = np.frombuffer(orjson.dumps(np.ascontiguousarray(values), option=orjson.OPT_SERIALIZE_NUMPY),
+                                np.uint8)
+        out = np.empty(len(numbers) + len(ns) * (_MESSAGE_HEADER + len(pieces)), np.uint8)
+        offsets = np.empty(len(ns), np.int64)
+        size = _message_records(numbers, pieces, starts, ch, ns, out, offsets)
+        try:
+            self._append_records(ch, out[:size], offsets, ns)
+        except OSError as exc:                  # a full chunk is written to the file here
+            raise output_error(self.path, exc) from None
+
+    def _append_records(self, ch: int, records: np.ndarray, offsets: np.ndarray, ns: np.ndarray) -> None:
+        """Add encoded Message records to the writer's chunks, about ``chunk_size`` bytes at a time.
+
+        The mcap Writer has no bulk call: its chunk builder and statistics are filled as
+        ``add_message`` would (with an mcap whose internals differ, add_message is used).
+        """
+        w = self._writer
+        ends = np.append(offsets[1:], len(records))
+        parts = _chunk_parts(w)
+        if parts is None:
+            for off, end, t in zip(offsets.tolist(), ends.tolist(), ns.tolist()):
+                w.add_message(ch, t, records[off + _MESSAGE_HEADER: end].tobytes(), t)
+            return
+        builder, stats, finalize = parts
+        i = 0
+        while i < len(ns):
+            room = max(self._chunk_size - builder.count, 1)
+            j = max(int(np.searchsorted(ends, offsets[i] + room, side="right")), i + 1)
+            base = builder.count - int(offsets[i])
+            builder.record_writer.write(records[offsets[i]: ends[j - 1]].tobytes())
+            index = builder.message_indices.get(ch)
+            if index is None:
+                index = builder.message_indices[ch] = _PackedMessageIndex(channel_id=ch, records=[])
+            index.records.extend(zip(ns[i:j].tolist(), (offsets[i:j] + base).tolist()))
+            lo, hi = int(ns[i:j].min()), int(ns[i:j].max())
+            builder.message_start_time = lo if builder.num_messages == 0 else min(lo, builder.message_start_time)
+            builder.message_end_time = max(hi, builder.message_end_time)
+            builder.num_messages += j - i
+            stats.message_start_time = lo if stats.message_count == 0 else min(lo, stats.message_start_time)
+            stats.message_end_time = max(hi, stats.message_end_time)
+            stats.channel_message_counts[ch] += j - i
+            stats.message_count += j - i
+            finalize()
+            i = j
+
+    def _visual_samples(self, source: str, ns: np.ndarray) -> list[int]:
+        """Indices of the samples ``_visualize`` would keep, for a batch of times."""
+        if self._viz_period_ns is None:
+            return []
+        out, nxt = [], self._viz_next.get(source, 0)
+        i = int(np.searchsorted(ns, nxt))
+        while i < len(ns):
+            out.append(i)
+            nxt = int(ns[i]) + self._viz_period_ns
+            i = int(np.searchsorted(ns, nxt))
+        self._viz_next[source] = nxt
+        return out
 
     def _visualize(self, source: str, ns: int, alpha) -> None:
         # Poses are kept and drawn at close(), with one batched forward kinematics per source.
@@ -241,7 +433,7 @@ class LogWriter:
                     ch = self._channel(topic, "foxglove.FrameTransforms", foxglove.FRAME_TRANSFORMS_SCHEMA)
                 else:
                     ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
-                self._writer.add_message(ch, ns, _DUMPS(msg).encode(), ns)
+                self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON
                 self.counts[topic] += 1
 
 
