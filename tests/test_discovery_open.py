@@ -1,9 +1,8 @@
 """Blind tests of the diagnosis on logs whose hidden effects share no code with its candidates.
 
 The logs come from :mod:`open_world.generator` (MuJoCo model fields and formulas of its own; it
-never imports :mod:`neck_sim.effects` or the diagnosis), three seeds per effect (the new effects,
-the effects outside the vocabulary and the noise-only control; the benchmark runs every case),
-the affected cable / joint / spring and the magnitude (x 0.8..1.25) drawn from the seed.  Checks: the verdict
+never imports :mod:`neck_sim.effects` or the diagnosis), three seeds per effect, the affected
+cable / joint / spring and the magnitude (x 0.8..1.25) drawn from the seed.  Checks: the verdict
 names the hidden effect (``unexplained`` for the effects outside the vocabulary, never a single
 wrong name), where it acts, and its magnitude within 10 % (or the stated physical resolution).
 
@@ -23,16 +22,19 @@ from identification.diagnosis import DiagnosisSettings, diagnose_log
 from open_world.generator import OUT_OF_VOCABULARY, UNEXPLAINED, make_spec, simulate
 
 SEEDS = (1, 2, 3)
-#: The effects new in the vocabulary (the others, hidden by the same generator, are measured over
-#: seeds and levels by benchmarks/bench_detection.py: the test budget holds 18 logs)
-NAMED = ("spring_error", "joint_friction", "camera_delay")
+NAMED = ("spring_error", "joint_friction", "camera_delay", "viscous_friction", "dry_friction", "stribeck_friction",
+         "payload", "actuation_delay", "pretension")
 FAST = DiagnosisSettings(resimulate=False, max_steps=1)
 
 #: Relative tolerance of each magnitude, 10 % unless stated.  Joint friction: MuJoCo's friction
 #: constraint applies 0.95 of its frictionloss while a hinge slides (measured on these logs) and
 #: the arctan column reads 1.06-1.16 of it (the bias of the smoothed sign against the soft
-#: constraint, largest on the light top joint): 20 %.
+#: constraint, largest on the light top joint): 20 %.  (The Stribeck bump has no magnitude of the
+#: candidate's form: name and cable only.)
 TOLERANCE = {**{name: 0.10 for name in NAMED}, "joint_friction": 0.20}
+#: Absolute tolerances where a physical resolution sets them: the rest elongation's profile sigma
+#: is 0.3-1 mm on these 12 s logs (m)
+ABSOLUTE = {"pretension": 0.5e-3}
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +69,8 @@ def test_hidden_effect_is_named_located_and_sized(diagnosed, name, seed):
         assert f.joints == [j + 1 for j in spec.joints], spec.description
     if spec.symbol is not None:
         fitted = f.parameters[spec.symbol].value
-        assert fitted == pytest.approx(spec.magnitude, rel=TOLERANCE[name]), (spec.description, fitted)
+        tol = {"abs": ABSOLUTE[name]} if name in ABSOLUTE else {"rel": TOLERANCE[name]}
+        assert fitted == pytest.approx(spec.magnitude, **tol), (spec.description, fitted)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
