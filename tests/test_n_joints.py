@@ -40,8 +40,8 @@ def test_long_neck_amplitude_is_the_largest_within_the_force_margin(n):
 @pytest.mark.parametrize("n, rigid", [(1, False), (5, False), (10, True)])
 def test_control_test_runs_for_n_joints(n, rigid):
     """Law 2 follows the fitted control test without leaving the workspace, saturating or letting a
-    cable go slack.  N = 10 runs on rigid cables: on elastic ones its inextensible estimator errs
-    by several degrees and the loop oscillates (README, Known limitations)."""
+    cable go slack.  N = 10 runs on rigid cables: on elastic ones gravity on the long neck leaves
+    too little stiffness behind the cables and the loop diverges (README, Known limitations)."""
     p = default_params(n)
     traj = make_trajectory("control-test", p, SHORT)
     res = run_closed_loop(Plant(p, rigid_cables=rigid), ComputedTorqueController(p, 2), traj, progress=False)
