@@ -260,7 +260,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                         # a copy: theta's row is overwritten next period and a controller may keep it
                         _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
                     elif status[i]:
-                        raise step_error(int(status[i]), outs[i, k, :n], controllers[i].params.geometry.alpha_max)
+                        raise step_error(int(status[i]), state.values[i, 0, :n],
+                                         controllers[i].params.geometry.alpha_max)
                     plant.step(f[k])
                 except (ValueError, RuntimeError) as exc:
                     err = RuntimeError(f"closed loop stopped at t = {r_t[k]:.3f} s: {exc}")

@@ -416,7 +416,8 @@ class ComputedTorqueController:
         :func:`output_slices`).  Raises the controller's errors (ValueError subclasses)."""
         advance(self.state, np.asarray(theta, dtype=float)[None], k, ref_table[None], out_table[None])
         if self.state.status[0]:
-            raise step_error(int(self.state.status[0]), out_table[k, : self.params.n_joints],
+            # the state holds the estimate that failed (a failing step writes no output row)
+            raise step_error(int(self.state.status[0]), self.state.values[0, _ALPHA_HAT, : self.params.n_joints],
                              self.params.geometry.alpha_max)
 
     def step(self, theta, ref: MotorReference) -> ControlStep:

@@ -145,8 +145,11 @@ def test_estimate_outside_the_workspace_is_an_error(params):
     ref = c.motor_reference(_static_reference(np.zeros(3)))
     c.step(np.zeros(4), ref)
     far = motor_angles_rigid(np.radians([95.0, 0.0, 0.0]), params, allow_outside_range=True)   # probes past the edge
-    with pytest.raises(OutsideWorkspaceError, match="joint 1"):
+    with pytest.raises(OutsideWorkspaceError, match="joint 1") as err:
         c.step(far, ref)
+    # the message gives the estimate that left the range (one eq-35 step from straight: near 95 deg)
+    shown = float(str(err.value).split("estimated at ")[1].split(" deg")[0])
+    assert 90.0 < shown < 110.0, str(err.value)
 
 
 def test_bad_arguments_are_named(params):
