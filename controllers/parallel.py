@@ -54,7 +54,9 @@ def run_one(spec: RunSpec, progress: bool = False) -> RunResult:
     plant = Plant(spec.params, effects=spec.effects, seed=spec.seed, rigid_cables=spec.rigid_cables)
     model = spec.params if spec.controller_params is None else spec.controller_params
     controller = ComputedTorqueController(model, spec.law, **dict(spec.controller_kwargs))
-    trajectory = make_trajectory(spec.trajectory, model, spec.duration_scale)
+    # the trajectory is fitted to the neck that moves (the plant), not to the controller's model:
+    # Table 3's controller without pulleys must follow the same reference as the one with them
+    trajectory = make_trajectory(spec.trajectory, spec.params, spec.duration_scale)
     info = {"experiment": spec.label, **dict(spec.run_info)}
     return run_closed_loop(plant, controller, trajectory, log_path=spec.log_path, progress=progress, run_info=info)
 

@@ -46,3 +46,19 @@ def test_executor_choice_is_checked():
 
 def _inverse(x):
     return 1 / x
+
+
+def test_the_reference_is_fitted_to_the_plant_not_to_the_controllers_model():
+    # Table 3: a controller whose model ignores the pulleys (r = 0) would fit the identification
+    # trajectory to x0.96 of the paper's angles; the runs with and without pulleys must follow the
+    # same reference, the one the plant (the paper's neck) can carry.
+    from controllers.trajectories import make_trajectory, workspace_amplitude
+
+    p = default_params()
+    no_pulleys = p.replace(**{"geometry.r": 0.0})
+    assert workspace_amplitude("identification", no_pulleys, 0.05) < 1.0     # the case that matters
+    spec = RunSpec("no pulleys", p, law=2, trajectory="identification", duration_scale=0.05,
+                   controller_params=no_pulleys)
+    [res] = run_all([spec], None, progress=False)
+    ref = make_trajectory("identification", p, 0.05).sample(res.t).alpha
+    np.testing.assert_allclose(res.alpha_d, ref, atol=1e-12)
