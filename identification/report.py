@@ -25,6 +25,7 @@ import os
 import numpy as np
 
 from identification.diagnosis.result import method_text
+from neck_sim.effects import UNEXPLAINED
 
 __all__ = ["write_report", "format_summary"]
 
@@ -356,7 +357,7 @@ def _markdown(diag, figures: dict) -> str:
         L += ["", f"Re-simulation status: baseline {b.resimulation.status}; final {a.resimulation.status}."]
     L.append("")
     for key, title in (("torque", "Joint-torque residuals"), ("cable", "Cable residuals"),
-                       ("candidates", "Candidates"), ("unexplained", "Unexplained structure"),
+                       ("candidates", "Candidates"), (UNEXPLAINED, "Unexplained structure"),
                        ("alpha", "alpha_hat against the camera"),
                        ("resim", "Re-simulation")):
         if figures.get(key):
@@ -401,7 +402,7 @@ def write_report(diag, directory) -> list[str]:
     figs = {"torque": _residual_figure(diag, os.path.join(directory, "residuals_torque.png"), "torque"),
             "cable": _residual_figure(diag, os.path.join(directory, "residuals_cable.png"), "cable"),
             "candidates": _candidates_figure(diag, os.path.join(directory, "candidates.png")),
-            "unexplained": _unexplained_figure(diag, os.path.join(directory, "unexplained.png")),
+            UNEXPLAINED: _unexplained_figure(diag, os.path.join(directory, f"{UNEXPLAINED}.png")),
             "alpha": _alpha_figure(diag, os.path.join(directory, "alpha_hat.png")),
             "resim": _resim_figure(diag, os.path.join(directory, "resimulation.png"))}
     md = os.path.join(directory, "report.md")

@@ -174,7 +174,7 @@ class Diagnosis:
     @property
     def verdict(self):
         """The first step's verdict (an effect name, a list of names when ambiguous, or "none"),
-        with ``"unexplained"`` when the final model leaves structure beyond noise: alone instead
+        with ``UNEXPLAINED`` when the final model leaves structure beyond noise: alone instead
         of "none", appended to the names otherwise."""
         v = self.steps[0].verdict if self.steps else NONE
         if self.leftover is None or not self.leftover.significant:
@@ -193,7 +193,7 @@ class Diagnosis:
 
     def to_dict(self) -> dict:
         return jsonable({"verdict": self.verdict, "findings": [f.to_dict() for f in self.findings],
-                         "unexplained": None if self.leftover is None else self.leftover.to_dict(),
+                         UNEXPLAINED: None if self.leftover is None else self.leftover.to_dict(),
                          "notes": list(self.notes),
                          "baseline": self.baseline.to_dict(), "final": self.final.to_dict(),
                          "extended_model": self.extended.to_dict(),

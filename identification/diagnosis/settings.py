@@ -84,7 +84,7 @@ class DiagnosisSettings:
     alpha_hat: bool = True
     iterations: int = 3
     preprocess: PreprocessSettings = field(default_factory=PreprocessSettings)
-    structure: StructureSettings = field(default_factory=StructureSettings)     # the "unexplained" tests
+    structure: StructureSettings = field(default_factory=StructureSettings)     # the tests behind an UNEXPLAINED verdict
 
     def __post_init__(self):
         if self.moves_per_block < 1 or self.holdout_every < 2:
