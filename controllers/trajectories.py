@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.tension import TensionInfeasibleError, distribute_tensions
-from neck_sim.analytic import linkage_dynamics, transmission_matrix
+from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import (HOLD_TIME, MOVE_TIME, TRAJECTORIES, Trajectory, TrajectorySample,
                                  control_test_trajectory, cycloidal_path, identification_trajectory)
@@ -46,10 +46,8 @@ def feedforward_forces(trajectory: Trajectory, params: NeckParams, sample_dt: fl
     ref = ctrl.motor_reference(trajectory.sample(t))
     a = ref.alpha
     Z = transmission_matrix(a, params)
-    lk = linkage_dynamics(a, np.zeros_like(a), params)
-    M = lk.M + params.actuation.reflected_inertia * Z @ np.swapaxes(Z, -1, -2)
-    gamma = (np.einsum("...ij,...j->...i", M, ref.alpha_ddot) + lk.g
-             + np.einsum("...ij,...j->...i", Z, ref.friction))
+    gamma = (np.einsum("...ij,...j->...i", mass_matrix(a, params), ref.alpha_ddot)
+             + gravity_spring_torque(a, params) + np.einsum("...ij,...j->...i", Z, ref.friction))
     return distribute_tensions(Z, gamma, ref.lower, 1e12).requested         # 1e12 N: no clipping
 
 
