@@ -7,6 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from neck_sim.analytic.dynamics import arctan_friction
 from neck_sim.effects.base import Column, Hidden, MotorEffect, Shape, finite, indices, per_item
 from neck_sim.params import NeckParams
 
@@ -64,12 +65,12 @@ class DryFriction(MotorEffect):
             raise ValueError("dry_friction.motor_force: needs params when f_s or c_s is not set")
         td = np.asarray(theta_dot, dtype=float)
         fs, cs = self.resolved(params) if params is not None else (self.per_cable(td.shape[-1]), self.c_s)
-        return (2 / np.pi) * np.arctan(cs * td) * fs
+        return arctan_friction(td, cs, fs)
 
     def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
         """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., N+1)."""
         cs = self.c_s if self.c_s is not None else params.friction.c_s
-        return (2 / np.pi) * np.arctan(cs * np.asarray(theta_dot, dtype=float))
+        return arctan_friction(np.asarray(theta_dot, dtype=float), cs, 1.0)
 
     # the plant applies eq (37) from params.friction (apply); no extra native force
     @classmethod
