@@ -54,7 +54,7 @@ import mujoco
 import numpy as np
 
 from neck_sim.analytic.cables import motor_angles_rigid
-from neck_sim.analytic.dynamics import cable_tension, motor_friction
+from neck_sim.analytic.dynamics import cable_tension, cap_elongation, motor_friction
 from neck_sim import native
 from neck_sim.effects import Effects
 from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
@@ -376,7 +376,7 @@ class Plant:
             # the slack/taut kink, where the C callback takes the taut branch)
             cab = tp.cables
             k, lam = np.asarray(cab.k), np.asarray(cab.lam)
-            xs = cab.t_cap / (k + lam * cab.t_cap)
+            xs = cap_elongation(k, lam, cab.t_cap)
             dt = np.where((x > 0) & (t > 0), np.asarray(cab.c_a) / (1.0 - lam * np.minimum(x, xs)), 0.0)
             bias[ix.tension_actuator, 0] = -t + dt * xd
             bias[ix.tension_actuator, 1] = 0.0

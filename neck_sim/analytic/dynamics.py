@@ -257,6 +257,12 @@ def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
     return arctan_friction(np.asarray(theta_dot, dtype=float), params.friction.c_s, fs)
 
 
+def cap_elongation(k, lam, t_cap: float) -> np.ndarray:
+    """Elongation (m) at which eq (54)'s resting tension reaches ``t_cap`` (N), where the cable law
+    continues with its tangent stiffness: t_cap / (k + lambda t_cap); ``k`` N/m, ``lam`` 1/m."""
+    return t_cap / (k + lam * t_cap)
+
+
 def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
     """Tension-only cable tension of eq (54) solved for t, (..., m), N.
 
@@ -270,7 +276,7 @@ def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> n
     c_a = np.asarray(cab.c_a if c_a is None else c_a, dtype=float)
     x = np.asarray(x, dtype=float)
     x_dot = np.asarray(x_dot, dtype=float)
-    x_star = cab.t_cap / (k + lam * cab.t_cap)             # elongation where t reaches t_cap
+    x_star = cap_elongation(k, lam, cab.t_cap)
     xe = np.minimum(x, x_star)
     denom = 1.0 - lam * xe
     elastic = k * xe / denom + np.maximum(x - x_star, 0.0) * k / (1.0 - lam * x_star) ** 2

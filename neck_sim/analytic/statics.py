@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
-from neck_sim.analytic.dynamics import cable_tension, gravity_spring_torque
+from neck_sim.analytic.dynamics import cable_tension, cap_elongation, gravity_spring_torque, static_elongation
 from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables, side_lengths
 from neck_sim.params import NeckParams
 
@@ -138,7 +138,7 @@ def tension_slope(x, params: NeckParams) -> np.ndarray:
     cab = params.cables
     k, lam = np.asarray(cab.k), np.asarray(cab.lam)
     x = np.asarray(x, dtype=float)
-    x_star = cab.t_cap / (k + lam * cab.t_cap)
+    x_star = cap_elongation(k, lam, cab.t_cap)
     return np.where(x > 0, k / (1.0 - lam * np.minimum(x, x_star)) ** 2, 0.0)
 
 
@@ -149,9 +149,9 @@ def tension_elongation(tension, params: NeckParams) -> np.ndarray:
     t = check_cables(tension, params.n_cables, "tension")
     if np.any(t < 0):
         raise ValueError(f"tension: cables only pull, got {t.min():.3g} N")
-    x_star = cab.t_cap / (k + lam * cab.t_cap)
+    x_star = cap_elongation(k, lam, cab.t_cap)
     beyond = (t - cab.t_cap) * (1.0 - lam * x_star) ** 2 / k
-    return np.where(t <= cab.t_cap, t / (k + lam * t), x_star + beyond)
+    return np.where(t <= cab.t_cap, static_elongation(t, k, lam), x_star + beyond)
 
 
 def motor_angles_for(alpha, tension, params: NeckParams) -> np.ndarray:
