@@ -6,7 +6,6 @@ from __future__ import annotations
 from neck_sim import params as P
 from neck_sim.atomic import atomic_write_json
 from neck_sim.cli.common import check_paths, nonnegative_int, positive_int
-from neck_sim.pulley_study import pulley_effect
 
 HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increments 13 percent)"
 
@@ -19,6 +18,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from neck_sim.pulley_study import pulley_effect    # numba kernels: only when the command runs
+
     check_paths(files={"--json": args.json})
     eff = pulley_effect(P.default_params(args.n_joints), args.samples, args.seed)
     print(f"{'indicator':<44} {'neck-sim':>9} {'median':>8} {'paper':>6}")
