@@ -1,0 +1,271 @@
+"""LQR on the linearised neck-cable-motor model, for long necks on elastic cables.
+
+Law 2 (:mod:`controllers.computed_torque`) treats the cables as inextensible: its feedback acts on
+eq (35)'s alpha_hat, which follows the motors.  On a long neck gravity leaves the neck held by its
+motors through elastic cables with little stiffness, and the neck's weakest mode (about 0.5 Hz
+at N = 10 with the default constants) rides on nearly still motors: eq (35) hardly sees it, and
+the loop lets it grow (README, Known limitations).
+
+This controller keeps law 2's feed-forward and replaces its feedback:
+
+* **Neck observer.**  The motors are measured (encoders, 500 Hz); the neck is driven by them
+  through the cables.  The observer integrates the linearised neck (eq 24's M_m without motors,
+  the Hessian of gravity, springs and cable curvature, eq 54's cable stiffness and damping)
+  driven by the measured motor slides s = (r_d/R) theta, exactly for a motor motion that ramps
+  between two readings.  It needs no tension sensor and no friction model (friction acts on the
+  measured motors).  Camera frames, when given to :meth:`ElasticLQRController.camera`, pull
+  the estimate toward the measured angles (gain ``camera_gain``).
+* **LQR** (discrete, at the control rate) on the coupled model -- neck angles and speeds, motor
+  slides and speeds, and the integral of the joint-angle error -- with every cable force as an
+  input, so that the feedback damps the cable-motor-gravity mode with all N + 1 motors.
+
+Linearised once, at the straight pose with the tensions of eqs (63)-(65) holding it; meant for
+the small amplitudes a long neck can follow (``control-test x0.11`` at N = 10).
+
+Sign conventions are those of :mod:`neck_sim.analytic.cables`: x_c = (l_c - l_c0) + s, the cable
+tension acts as tau = Z t on the joints and as -t on its motor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm, solve_discrete_are
+
+from controllers.computed_torque import ControlLaw, ControlStep, MotorReference, ComputedTorqueController
+from controllers.tension import distribute_tensions
+from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
+from neck_sim.analytic.cables import cable_lengths
+from neck_sim.analytic.statics import force_stiffness, potential_hessian, tension_elongation, tension_slope
+from neck_sim.params import NeckParams
+
+__all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "ElasticLQRController"]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearNeck:
+    """The neck, its elastic cables and its motors linearised at one pose.
+
+    Z (N, m) m at the pose; Mn (N, N) kg m^2 the linkage's inertia (no motors); Kf (N, N) N m/rad
+    gravity, springs and cable curvature at the operating tensions (cables as force sources);
+    Kc, C (m,) N/m and N s/m the cables' tangent stiffness and damping (eq 54); m_r kg the
+    reflected motor inertia; friction (m,) N s/m the motors' linearised friction; tension (m,) N
+    the operating tensions; elongation (m,) m the cables' elongation under them.
+    """
+
+    Z: np.ndarray
+    Mn: np.ndarray
+    Kf: np.ndarray
+    Kc: np.ndarray
+    C: np.ndarray
+    m_r: float
+    friction: np.ndarray
+    tension: np.ndarray
+    elongation: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.Z.shape[0]
+
+    @property
+    def m(self) -> int:
+        return self.Z.shape[1]
+
+    def neck_matrices(self):
+        """Continuous neck dynamics driven by the motors: Mn a'' = -Ka a - Ca a' + Zk s + Zc s'.
+
+        Returns (Ka, Ca, Zk, Zc); s is the motor slides' deviation from the operating point (m)."""
+        Z = self.Z
+        return (self.Kf + (Z * self.Kc) @ Z.T, (Z * self.C) @ Z.T, Z * self.Kc, Z * self.C)
+
+    def state_space(self):
+        """A (2(N+m), 2(N+m)), B (2(N+m), m) of x = [alpha, s, alpha', s'], u = forces (N)."""
+        n, m = self.n, self.m
+        Ka, Ca, Zk, Zc = self.neck_matrices()
+        Mi = np.linalg.inv(self.Mn)
+        size = 2 * (n + m)
+        A = np.zeros((size, size))
+        B = np.zeros((size, m))
+        a, s, ad, sd = slice(0, n), slice(n, n + m), slice(n + m, 2 * n + m), slice(2 * n + m, size)
+        A[a, ad] = np.eye(n)
+        A[s, sd] = np.eye(m)
+        A[ad, a], A[ad, s], A[ad, ad], A[ad, sd] = -Mi @ Ka, Mi @ Zk, -Mi @ Ca, Mi @ Zc
+        A[sd, a] = Zk.T / self.m_r
+        A[sd, s] = -np.diag(self.Kc) / self.m_r
+        A[sd, ad] = Zc.T / self.m_r
+        A[sd, sd] = -np.diag(self.C + self.friction) / self.m_r
+        B[sd] = np.eye(m) / self.m_r
+        return A, B
+
+
+def linearise(params: NeckParams, alpha=None, *, t_min: float | None = None,
+              friction_scale: float = 0.3) -> LinearNeck:
+    """:class:`LinearNeck` at pose ``alpha`` (N,) rad (default straight), held at rest with the
+    least tensions of eqs (63)-(65) above ``t_min`` (N, default ``actuation.t_min``).
+
+    The friction of eq (37) is linearised at zero speed, (2/pi) f_s c_s R/r_d per cable, times
+    ``friction_scale``: the arctan saturates within a few rad/s, so a moving motor feels much
+    less than the slope at rest.
+    """
+    n, m = params.n_joints, params.n_cables
+    a = np.zeros(n) if alpha is None else np.asarray(alpha, dtype=float)
+    act, cab, fr = params.actuation, params.cables, params.friction
+    Z = transmission_matrix(a, params)
+    lower = np.full(m, act.t_min if t_min is None else float(t_min))
+    tension = distribute_tensions(Z, gravity_spring_torque(a, params), lower, 1e12).requested
+    x = tension_elongation(tension, params)
+    c_a = np.asarray(cab.c_a, dtype=float) / (1.0 - np.asarray(cab.lam) * x)
+    slope = (2 / np.pi) * np.asarray(fr.f_s, dtype=float) * fr.c_s * act.R / act.r_d
+    return LinearNeck(Z=Z, Mn=mass_matrix(a, params, motors=False), Kf=force_stiffness(a, tension, params),
+                      Kc=tension_slope(x, params), C=c_a, m_r=act.reflected_inertia,
+                      friction=friction_scale * slope, tension=tension, elongation=x)
+
+
+@dataclass(frozen=True)
+class LQRWeights:
+    """Diagonal LQR weights per unit of state (SI units squared) against 1 per N^2 of force."""
+
+    alpha: float = 1e5          # per rad^2 of joint angle
+    slide: float = 0.0          # per m^2 of motor slide
+    alpha_dot: float = 10.0     # per (rad/s)^2
+    slide_dot: float = 0.0      # per (m/s)^2
+    integral: float = 1e4       # per (rad s)^2 of the integrated angle error
+    force: float = 1.0          # per N^2
+
+
+def _discretise(A: np.ndarray, B: np.ndarray, dt: float):
+    """Zero-order-hold discretisation of x' = A x + B u over dt s (matrix exponential)."""
+    size, k = B.shape
+    E = np.zeros((size + k, size + k))
+    E[:size, :size], E[:size, size:] = A, B
+    F = expm(E * dt)
+    return F[:size, :size], F[:size, size:]
+
+
+def _with_integral(lin: LinearNeck):
+    A, B = lin.state_space()
+    n, size = lin.n, A.shape[0]
+    Ai = np.zeros((size + n, size + n))
+    Ai[:size, :size] = A
+    Ai[size:, :n] = np.eye(n)
+    return Ai, np.vstack([B, np.zeros((n, lin.m))])
+
+
+def lqr_gain(lin: LinearNeck, dt: float, weights: LQRWeights = LQRWeights()) -> np.ndarray:
+    """Discrete LQR gain K (m, 2(N+m) + N): u = -K [alpha, s, alpha', s', int alpha] (deviations)."""
+    n, m = lin.n, lin.m
+    Ad, Bd = _discretise(*_with_integral(lin), dt)
+    w = weights
+    q = np.concatenate([np.full(n, w.alpha), np.full(m, w.slide), np.full(n, w.alpha_dot), np.full(m, w.slide_dot),
+                        np.full(n, w.integral)])
+    R = w.force * np.eye(m)
+    X = solve_discrete_are(Ad, Bd, np.diag(q) + 1e-9 * np.eye(q.size), R)
+    return np.linalg.solve(R + Bd.T @ X @ Bd, Bd.T @ X @ Ad)
+
+
+def closed_loop_rates(lin_plant: LinearNeck, K: np.ndarray, dt: float) -> np.ndarray:
+    """Continuous-time eigenvalues (1/s) of ``lin_plant`` under u = -K x with full state, sorted
+    by decreasing real part (the first is the least damped)."""
+    Ad, Bd = _discretise(*_with_integral(lin_plant), dt)
+    mu = np.linalg.eigvals(Ad - Bd @ K).astype(complex)
+    rates = np.log(mu) / dt
+    return rates[np.argsort(-rates.real)]
+
+
+def neck_observer(lin: LinearNeck, dt: float) -> np.ndarray:
+    """Phi (2N, 2N + 2m): [a, a']_{k+1} = Phi [a_k, a'_k, s_k, s'_k] for motor slides s that
+    ramp at the constant speed s' over the period (exact for the linear model)."""
+    n, m = lin.n, lin.m
+    Ka, Ca, Zk, Zc = lin.neck_matrices()
+    Mi = np.linalg.inv(lin.Mn)
+    size = 2 * n + 2 * m
+    A = np.zeros((size, size))
+    A[:n, n:2 * n] = np.eye(n)
+    A[n:2 * n, :n], A[n:2 * n, n:2 * n] = -Mi @ Ka, -Mi @ Ca
+    A[n:2 * n, 2 * n:2 * n + m], A[n:2 * n, 2 * n + m:] = Mi @ Zk, Mi @ Zc
+    A[2 * n:2 * n + m, 2 * n + m:] = np.eye(m)          # s' = s'_k held: s ramps
+    return expm(A * dt)[:2 * n]
+
+
+class ElasticLQRController:
+    """Law 2's feed-forward plus LQR feedback on a neck observer (see the module docstring).
+
+    Parameters
+    ----------
+    params: the controller's model of the neck.
+    weights: :class:`LQRWeights`.
+    friction_scale: share of the friction slope at rest the design counts on (:func:`linearise`).
+    camera_gain: share of a camera frame's angle error taken into the neck estimate (0: encoders only).
+    t_min, f_min, f_max: override ``actuation`` (N).
+    """
+
+    law = ControlLaw.FRICTION
+
+    def __init__(self, params: NeckParams, *, weights: LQRWeights = LQRWeights(), friction_scale: float = 0.3,
+                 camera_gain: float = 0.0, t_min: float | None = None, f_min: float | None = None,
+                 f_max: float | None = None):
+        self.params = params
+        self.ff = ComputedTorqueController(params, ControlLaw.FRICTION, t_min=t_min, f_min=f_min, f_max=f_max)
+        self.f_min, self.f_max = self.ff.f_min, self.ff.f_max
+        self.dt = self.ff.dt
+        self.weights = weights
+        self.camera_gain = float(camera_gain)
+        self.lin = linearise(params, t_min=self.ff.t_min, friction_scale=friction_scale)
+        self.K = lqr_gain(self.lin, self.dt, weights)
+        self.phi = neck_observer(self.lin, self.dt)
+        act = params.actuation
+        self.ratio = act.r_d / act.R
+        self.reset()
+
+    def describe(self) -> str:
+        return (f"elastic LQR: law 2 feed-forward, LQR feedback on a neck observer (weights {self.weights}), "
+                f"camera gain {self.camera_gain:g}, t_min = {self.ff.t_min:g} N, f_max = {self.f_max:g} N")
+
+    def motor_reference(self, sample) -> MotorReference:
+        return self.ff.motor_reference(sample)
+
+    def reset(self, alpha0=None, theta0=None) -> None:
+        n, m = self.params.n_joints, self.params.n_cables
+        self.alpha = np.zeros(n) if alpha0 is None else np.array(alpha0, dtype=float)
+        self.alpha_dot = np.zeros(n)
+        self.integral = np.zeros(n)
+        self.slide = None if theta0 is None else self.ratio * np.asarray(theta0, dtype=float)
+        self.slide_dot = np.zeros(m)
+        # the observer works on deviations from the operating point: slides there hold the straight pose
+        self._s0 = self.lin.elongation - cable_lengths(np.zeros(n), self.params)
+        self._started = False
+
+    def _feedforward(self, ref: MotorReference):
+        p = self.params
+        a = ref.alpha
+        Z = transmission_matrix(a, p)
+        gamma = mass_matrix(a, p) @ ref.alpha_ddot + gravity_spring_torque(a, p) + Z @ ref.friction
+        forces = distribute_tensions(Z, gamma, ref.lower, 1e12).requested
+        # motors accelerate with the reference: the cables carry the force minus friction and inertia
+        tension = forces - ref.friction - self.lin.m_r * self.ratio * ref.theta_ddot
+        slide = tension_elongation(np.maximum(tension, 0.0), p) - cable_lengths(a, p)
+        return forces, slide, self.ratio * ref.theta_dot
+
+    def step(self, theta, ref: MotorReference) -> ControlStep:
+        n = self.params.n_joints
+        s = self.ratio * np.asarray(theta, dtype=float)
+        if self.slide is None:
+            self.slide = s.copy()
+        if self._started:
+            s_dot = (s - self.slide) / self.dt
+            z = np.concatenate([self.alpha, self.alpha_dot, self.slide - self._s0, s_dot])
+            nxt = self.phi @ z
+            self.alpha, self.alpha_dot = nxt[:n], nxt[n:]
+            self.slide_dot = s_dot
+        self._started = True
+        self.slide = s
+        f_ff, s_d, s_dot_d = self._feedforward(ref)
+        da = self.alpha - ref.alpha
+        self.integral += da * self.dt
+        x = np.concatenate([da, s - s_d, self.alpha_dot - ref.alpha_dot, self.slide_dot - s_dot_d, self.integral])
+        requested = f_ff - self.K @ x
+        forces = np.clip(requested, self.f_min, self.f_max)
+        elong = cable_lengths(self.alpha, self.params) + s
+        return ControlStep(forces, requested, requested > self.f_max, self.alpha.copy(), elong,
+                           self.params.actuation.f_max * 0 + np.zeros(n), np.zeros(n))
