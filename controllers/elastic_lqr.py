@@ -36,8 +36,10 @@ from scipy.linalg import expm, solve_discrete_are
 from controllers.computed_torque import ControlLaw, ControlStep, MotorReference, ComputedTorqueController
 from controllers.tension import distribute_tensions
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
-from neck_sim.analytic.cables import cable_lengths
-from neck_sim.analytic.statics import force_stiffness, potential_hessian, tension_elongation, tension_slope
+from neck_sim.analytic.cables import cable_kinematics, cable_lengths
+from neck_sim.analytic.dynamics import cable_tension, linkage_dynamics
+from neck_sim.analytic.statics import (_cable_curvature_term, force_stiffness, potential_hessian, tension_elongation,
+                                       tension_slope)
 from neck_sim.params import NeckParams
 
 __all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "ElasticLQRController"]
@@ -203,14 +205,14 @@ class ElasticLQRController:
     law = ControlLaw.FRICTION
 
     def __init__(self, params: NeckParams, *, weights: LQRWeights = LQRWeights(), friction_scale: float = 0.3,
-                 camera_gain: float = 0.0, t_min: float | None = None, f_min: float | None = None,
+                 nonlinear: bool = True, t_min: float | None = None, f_min: float | None = None,
                  f_max: float | None = None):
         self.params = params
         self.ff = ComputedTorqueController(params, ControlLaw.FRICTION, t_min=t_min, f_min=f_min, f_max=f_max)
         self.f_min, self.f_max = self.ff.f_min, self.ff.f_max
         self.dt = self.ff.dt
         self.weights = weights
-        self.camera_gain = float(camera_gain)
+        self.nonlinear = nonlinear
         self.lin = linearise(params, t_min=self.ff.t_min, friction_scale=friction_scale)
         self.K = lqr_gain(self.lin, self.dt, weights)
         self.phi = neck_observer(self.lin, self.dt)
@@ -220,7 +222,7 @@ class ElasticLQRController:
 
     def describe(self) -> str:
         return (f"elastic LQR: law 2 feed-forward, LQR feedback on a neck observer (weights {self.weights}), "
-                f"camera gain {self.camera_gain:g}, t_min = {self.ff.t_min:g} N, f_max = {self.f_max:g} N")
+                f"t_min = {self.ff.t_min:g} N, f_max = {self.f_max:g} N")
 
     def motor_reference(self, sample) -> MotorReference:
         return self.ff.motor_reference(sample)
@@ -247,6 +249,25 @@ class ElasticLQRController:
         slide = tension_elongation(np.maximum(tension, 0.0), p) - cable_lengths(a, p)
         return forces, slide, self.ratio * ref.theta_dot
 
+    def _observe_nonlinear(self, s, s_dot) -> None:
+        """One implicit Euler step of the neck, M_m a'' + c_m + g = Z t(x_c, x_c'), driven by the
+        measured slides s (m) moving at s_dot (m/s) (eqs 24, 30, 54)."""
+        p, dt = self.params, self.dt
+        a, ad = self.alpha, self.alpha_dot
+        ck = cable_kinematics(a, np.ones_like(a), p, allow_outside_range=True)
+        ld = linkage_dynamics(a, ad, p, allow_outside_range=True)
+        Z = ck.Z
+        x = ck.lengths + s
+        t = cable_tension(x, s_dot - Z.T @ ad, p)
+        F = Z @ t - ld.c - ld.g
+        kc = tension_slope(x, p)
+        damp = np.where(x > 0, np.asarray(p.cables.c_a) / (1.0 - np.asarray(p.cables.lam) * np.maximum(x, 0.0)), 0.0)
+        Ka = potential_hessian(a, p) + _cable_curvature_term(ck.Zdot, t) + (Z * kc) @ Z.T
+        Ca = (Z * damp) @ Z.T
+        delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (F - dt * Ka @ ad))
+        self.alpha_dot = ad + delta
+        self.alpha = a + dt * self.alpha_dot
+
     def step(self, theta, ref: MotorReference) -> ControlStep:
         n = self.params.n_joints
         s = self.ratio * np.asarray(theta, dtype=float)
@@ -254,9 +275,12 @@ class ElasticLQRController:
             self.slide = s.copy()
         if self._started:
             s_dot = (s - self.slide) / self.dt
-            z = np.concatenate([self.alpha, self.alpha_dot, self.slide - self._s0, s_dot])
-            nxt = self.phi @ z
-            self.alpha, self.alpha_dot = nxt[:n], nxt[n:]
+            if self.nonlinear:
+                self._observe_nonlinear(s, s_dot)
+            else:
+                z = np.concatenate([self.alpha, self.alpha_dot, self.slide - self._s0, s_dot])
+                nxt = self.phi @ z
+                self.alpha, self.alpha_dot = nxt[:n], nxt[n:]
             self.slide_dot = s_dot
         self._started = True
         self.slide = s
