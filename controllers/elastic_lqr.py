@@ -9,18 +9,17 @@ the loop lets it grow (README, Known limitations).
 This controller keeps law 2's feed-forward and replaces its feedback:
 
 * **Neck observer.**  The motors are measured (encoders, 500 Hz); the neck is driven by them
-  through the cables.  The observer integrates the linearised neck (eq 24's M_m without motors,
-  the Hessian of gravity, springs and cable curvature, eq 54's cable stiffness and damping)
-  driven by the measured motor slides s = (r_d/R) theta, exactly for a motor motion that ramps
-  between two readings.  It needs no tension sensor and no friction model (friction acts on the
-  measured motors).  Camera frames, when given to :meth:`ElasticLQRController.camera`, pull
-  the estimate toward the measured angles (gain ``camera_gain``).
+  through the cables.  The observer integrates the analytic neck (eq 24's M_m without motors,
+  c_m, g of eq 25, the tension of eq 54 with its damping) driven by the measured motor slides
+  s = (r_d/R) theta, one implicit Euler step per period (the light bars on stiff cables have modes
+  near 500 rad/s).  It needs no tension sensor and no friction model: friction acts on the
+  motors, which are measured.  It reads the controller's model (``params``), never the plant.
 * **LQR** (discrete, at the control rate) on the coupled model -- neck angles and speeds, motor
   slides and speeds, and the integral of the joint-angle error -- with every cable force as an
   input, so that the feedback damps the cable-motor-gravity mode with all N + 1 motors.
 
-Linearised once, at the straight pose with the tensions of eqs (63)-(65) holding it; meant for
-the small amplitudes a long neck can follow (``control-test x0.11`` at N = 10).
+The gain is computed once, at the straight pose held by the least tensions of eqs (63)-(65); the
+observer and the feed-forward are nonlinear.
 
 Sign conventions are those of :mod:`neck_sim.analytic.cables`: x_c = (l_c - l_c0) + s, the cable
 tension acts as tau = Z t on the joints and as -t on its motor.
@@ -33,16 +32,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
-from controllers.computed_torque import ControlLaw, ControlStep, MotorReference, ComputedTorqueController
+from controllers.computed_torque import (ComputedTorqueController, ControlLaw, ControlStep, MotorReference,
+                                         OutsideWorkspaceError)
 from controllers.tension import distribute_tensions
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, linkage_dynamics
 from neck_sim.analytic.statics import (_cable_curvature_term, force_stiffness, potential_hessian, tension_elongation,
                                        tension_slope)
+from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams
 
-__all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "ElasticLQRController"]
+__all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "closed_loop_rates", "reference_forces",
+           "ElasticLQRController"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,11 +130,11 @@ def linearise(params: NeckParams, alpha=None, *, t_min: float | None = None,
 class LQRWeights:
     """Diagonal LQR weights per unit of state (SI units squared) against 1 per N^2 of force."""
 
-    alpha: float = 1e5          # per rad^2 of joint angle
+    alpha: float = 1e7          # per rad^2 of joint angle
     slide: float = 0.0          # per m^2 of motor slide
-    alpha_dot: float = 10.0     # per (rad/s)^2
+    alpha_dot: float = 1e3      # per (rad/s)^2
     slide_dot: float = 0.0      # per (m/s)^2
-    integral: float = 1e4       # per (rad s)^2 of the integrated angle error
+    integral: float = 1e6       # per (rad s)^2 of the integrated angle error
     force: float = 1.0          # per N^2
 
 
@@ -175,83 +177,79 @@ def closed_loop_rates(lin_plant: LinearNeck, K: np.ndarray, dt: float) -> np.nda
     return rates[np.argsort(-rates.real)]
 
 
-def neck_observer(lin: LinearNeck, dt: float) -> np.ndarray:
-    """Phi (2N, 2N + 2m): [a, a']_{k+1} = Phi [a_k, a'_k, s_k, s'_k] for motor slides s that
-    ramp at the constant speed s' over the period (exact for the linear model)."""
-    n, m = lin.n, lin.m
-    Ka, Ca, Zk, Zc = lin.neck_matrices()
-    Mi = np.linalg.inv(lin.Mn)
-    size = 2 * n + 2 * m
-    A = np.zeros((size, size))
-    A[:n, n:2 * n] = np.eye(n)
-    A[n:2 * n, :n], A[n:2 * n, n:2 * n] = -Mi @ Ka, -Mi @ Ca
-    A[n:2 * n, 2 * n:2 * n + m], A[n:2 * n, 2 * n + m:] = Mi @ Zk, Mi @ Zc
-    A[2 * n:2 * n + m, 2 * n + m:] = np.eye(m)          # s' = s'_k held: s ramps
-    return expm(A * dt)[:2 * n]
+def reference_forces(ref: MotorReference, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
+    """Law 2's feed-forward at the reference (no feedback): gamma (..., N) N m of eq (66) with
+    w = alpha_d'' and the eq (63)-(65) forces (..., m) N that produce it, unclipped (as
+    :func:`controllers.trajectories.feedforward_forces` does along a whole trajectory)."""
+    a = ref.alpha
+    Z = transmission_matrix(a, params)
+    gamma = (np.einsum("...ij,...j->...i", mass_matrix(a, params), ref.alpha_ddot) + gravity_spring_torque(a, params)
+             + np.einsum("...ij,...j->...i", Z, ref.friction))
+    return gamma, distribute_tensions(Z, gamma, ref.lower, 1e12).requested
 
 
 class ElasticLQRController:
     """Law 2's feed-forward plus LQR feedback on a neck observer (see the module docstring).
 
+    The interface of :class:`~controllers.computed_torque.ComputedTorqueController` that
+    :func:`controllers.closed_loop.run_lockstep` uses (its Python path: one ``step`` per period).
+
     Parameters
     ----------
-    params: the controller's model of the neck.
+    params: the controller's model of the neck (paper kind of routing, N + 1 cables).
     weights: :class:`LQRWeights`.
     friction_scale: share of the friction slope at rest the design counts on (:func:`linearise`).
-    camera_gain: share of a camera frame's angle error taken into the neck estimate (0: encoders only).
     t_min, f_min, f_max: override ``actuation`` (N).
     """
 
-    law = ControlLaw.FRICTION
+    law = ControlLaw.FRICTION          # its feed-forward is law 2's (friction at the desired speeds)
 
     def __init__(self, params: NeckParams, *, weights: LQRWeights = LQRWeights(), friction_scale: float = 0.3,
-                 nonlinear: bool = True, t_min: float | None = None, f_min: float | None = None,
-                 f_max: float | None = None):
+                 t_min: float | None = None, f_min: float | None = None, f_max: float | None = None):
+        if not (np.isfinite(friction_scale) and friction_scale >= 0):
+            raise ValueError(f"friction_scale: must be finite and >= 0, got {friction_scale!r}")
         self.params = params
-        self.ff = ComputedTorqueController(params, ControlLaw.FRICTION, t_min=t_min, f_min=f_min, f_max=f_max)
-        self.f_min, self.f_max = self.ff.f_min, self.ff.f_max
-        self.dt = self.ff.dt
+        # law 2 supplies the reference (desired motor speeds, friction, eq 65 bounds) and checks the limits
+        self._law2 = ComputedTorqueController(params, ControlLaw.FRICTION, t_min=t_min, f_min=f_min, f_max=f_max)
+        self.t_min, self.f_min, self.f_max = self._law2.t_min, self._law2.f_min, self._law2.f_max
+        self.dt = self._law2.dt
         self.weights = weights
-        self.nonlinear = nonlinear
-        self.lin = linearise(params, t_min=self.ff.t_min, friction_scale=friction_scale)
+        self.lin = linearise(params, t_min=self.t_min, friction_scale=friction_scale)
         self.K = lqr_gain(self.lin, self.dt, weights)
-        self.phi = neck_observer(self.lin, self.dt)
         act = params.actuation
-        self.ratio = act.r_d / act.R
+        self._ratio = act.r_d / act.R
         self.reset()
 
     def describe(self) -> str:
-        return (f"elastic LQR: law 2 feed-forward, LQR feedback on a neck observer (weights {self.weights}), "
-                f"t_min = {self.ff.t_min:g} N, f_max = {self.f_max:g} N")
+        """One line naming the controller and its settings."""
+        w = self.weights
+        return (f"elastic LQR: law 2 feed-forward, LQR on a neck observer (alpha {w.alpha:g}, alpha_dot "
+                f"{w.alpha_dot:g}, integral {w.integral:g} per N^2), t_min = {self.t_min:g} N, "
+                f"f_min = {self.f_min:g} N, f_max = {self.f_max:g} N")
 
     def motor_reference(self, sample) -> MotorReference:
-        return self.ff.motor_reference(sample)
+        """Desired motor motion, believed friction and eq (65) bounds (law 2's), batched."""
+        return self._law2.motor_reference(sample)
 
     def reset(self, alpha0=None, theta0=None) -> None:
+        """Start from pose ``alpha0`` (default straight) at rest, encoders reading ``theta0`` there
+        (None: the first reading given to :meth:`step`)."""
         n, m = self.params.n_joints, self.params.n_cables
-        self.alpha = np.zeros(n) if alpha0 is None else np.array(alpha0, dtype=float)
+        self.alpha = np.zeros(n) if alpha0 is None else check_cables(alpha0, n, "alpha0").astype(float)
         self.alpha_dot = np.zeros(n)
         self.integral = np.zeros(n)
-        self.slide = None if theta0 is None else self.ratio * np.asarray(theta0, dtype=float)
+        self.slide = None if theta0 is None else self._ratio * check_cables(theta0, m, "theta0")
         self.slide_dot = np.zeros(m)
-        # the observer works on deviations from the operating point: slides there hold the straight pose
-        self._s0 = self.lin.elongation - cable_lengths(np.zeros(n), self.params)
-        self._started = False
 
-    def _feedforward(self, ref: MotorReference):
-        p = self.params
-        a = ref.alpha
-        Z = transmission_matrix(a, p)
-        gamma = mass_matrix(a, p) @ ref.alpha_ddot + gravity_spring_torque(a, p) + Z @ ref.friction
-        forces = distribute_tensions(Z, gamma, ref.lower, 1e12).requested
-        # motors accelerate with the reference: the cables carry the force minus friction and inertia
-        tension = forces - ref.friction - self.lin.m_r * self.ratio * ref.theta_ddot
-        slide = tension_elongation(np.maximum(tension, 0.0), p) - cable_lengths(a, p)
-        return forces, slide, self.ratio * ref.theta_dot
+    @property
+    def alpha_hat(self) -> np.ndarray:
+        """The neck observer's joint angles (N,) rad."""
+        return self.alpha.copy()
 
-    def _observe_nonlinear(self, s, s_dot) -> None:
-        """One implicit Euler step of the neck, M_m a'' + c_m + g = Z t(x_c, x_c'), driven by the
-        measured slides s (m) moving at s_dot (m/s) (eqs 24, 30, 54)."""
+    def _observe(self, s: np.ndarray, s_dot: np.ndarray) -> None:
+        """One implicit Euler step of the neck, M_m a'' + c_m + g = Z t(x_c, x_c') (eqs 24, 30, 54),
+        driven by the measured slides s (m) moving at s_dot (m/s); Jacobians of the right-hand
+        side in closed form (:mod:`neck_sim.analytic.statics`)."""
         p, dt = self.params, self.dt
         a, ad = self.alpha, self.alpha_dot
         ck = cable_kinematics(a, np.ones_like(a), p, allow_outside_range=True)
@@ -259,37 +257,45 @@ class ElasticLQRController:
         Z = ck.Z
         x = ck.lengths + s
         t = cable_tension(x, s_dot - Z.T @ ad, p)
-        F = Z @ t - ld.c - ld.g
-        kc = tension_slope(x, p)
-        damp = np.where(x > 0, np.asarray(p.cables.c_a) / (1.0 - np.asarray(p.cables.lam) * np.maximum(x, 0.0)), 0.0)
-        Ka = potential_hessian(a, p) + _cable_curvature_term(ck.Zdot, t) + (Z * kc) @ Z.T
-        Ca = (Z * damp) @ Z.T
-        delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (F - dt * Ka @ ad))
+        lam = np.asarray(p.cables.lam)
+        damping = np.where(x > 0, np.asarray(p.cables.c_a) / (1.0 - lam * np.maximum(x, 0.0)), 0.0)
+        Ka = potential_hessian(a, p) + _cable_curvature_term(ck.Zdot, t) + (Z * tension_slope(x, p)) @ Z.T
+        Ca = (Z * damping) @ Z.T
+        rhs = Z @ t - ld.c - ld.g
+        delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (rhs - dt * Ka @ ad))
         self.alpha_dot = ad + delta
         self.alpha = a + dt * self.alpha_dot
 
     def step(self, theta, ref: MotorReference) -> ControlStep:
-        n = self.params.n_joints
-        s = self.ratio * np.asarray(theta, dtype=float)
-        if self.slide is None:
-            self.slide = s.copy()
-        if self._started:
-            s_dot = (s - self.slide) / self.dt
-            if self.nonlinear:
-                self._observe_nonlinear(s, s_dot)
-            else:
-                z = np.concatenate([self.alpha, self.alpha_dot, self.slide - self._s0, s_dot])
-                nxt = self.phi @ z
-                self.alpha, self.alpha_dot = nxt[:n], nxt[n:]
-            self.slide_dot = s_dot
-        self._started = True
+        """Forces for the next period from the encoder reading ``theta`` (N+1,) rad and one
+        reference sample (``motor_reference(...).at(k)``).  ``gamma`` is the feed-forward torque
+        of eq (66) at the reference and ``w`` the reference acceleration (no eq 59 loop)."""
+        p = self.params
+        theta = check_cables(theta, p.n_cables, "theta")
+        if not np.all(np.isfinite(theta)):
+            raise ValueError("theta: contains NaN or infinity")
+        s = self._ratio * theta
+        if self.slide is not None:
+            self.slide_dot = (s - self.slide) / self.dt
+            self._observe(s, self.slide_dot)
         self.slide = s
-        f_ff, s_d, s_dot_d = self._feedforward(ref)
-        da = self.alpha - ref.alpha
-        self.integral += da * self.dt
-        x = np.concatenate([da, s - s_d, self.alpha_dot - ref.alpha_dot, self.slide_dot - s_dot_d, self.integral])
+        a_max = p.geometry.alpha_max
+        if np.any(np.abs(self.alpha) > a_max):
+            j = int(np.argmax(np.abs(self.alpha)))
+            raise OutsideWorkspaceError(
+                f"alpha_hat: joint {j + 1} estimated at {np.degrees(self.alpha[j]):.1f} deg, outside the "
+                f"workspace |alpha| <= {np.degrees(a_max):.1f} deg")
+        gamma, f_ff = reference_forces(ref, p)
+        # the reference state: cables stretched by the feed-forward tension (force minus the believed
+        # friction and the reference's motor inertia), motors at the speeds of eq (21)
+        tension = np.maximum(f_ff - ref.friction - self.lin.m_r * self._ratio * ref.theta_ddot, 0.0)
+        s_d = tension_elongation(tension, p) - cable_lengths(ref.alpha, p)
+        error = self.alpha - ref.alpha
+        self.integral += error * self.dt
+        x = np.concatenate([error, s - s_d, self.alpha_dot - ref.alpha_dot,
+                            self.slide_dot - self._ratio * ref.theta_dot, self.integral])
         requested = f_ff - self.K @ x
         forces = np.clip(requested, self.f_min, self.f_max)
-        elong = cable_lengths(self.alpha, self.params) + s
-        return ControlStep(forces, requested, requested > self.f_max, self.alpha.copy(), elong,
-                           self.params.actuation.f_max * 0 + np.zeros(n), np.zeros(n))
+        return ControlStep(forces, requested, requested > self.f_max, self.alpha.copy(),
+                           cable_lengths(self.alpha, p, allow_outside_range=True) + s, gamma,
+                           np.asarray(ref.alpha_ddot, dtype=float).copy())
