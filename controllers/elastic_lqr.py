@@ -37,9 +37,8 @@ from controllers.computed_torque import (ComputedTorqueController, ControlLaw, C
 from controllers.tension import distribute_tensions
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
-from neck_sim.analytic.dynamics import cable_tension, linkage_dynamics
-from neck_sim.analytic.statics import (_cable_curvature_term, force_stiffness, potential_hessian, tension_elongation,
-                                       tension_slope)
+from neck_sim.analytic.dynamics import cable_tension, cap_elongation, linkage_dynamics
+from neck_sim.analytic.statics import force_stiffness, tension_elongation, tension_slope
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams
 
@@ -103,6 +102,15 @@ class LinearNeck:
         return A, B
 
 
+def cable_damping(x, params: NeckParams) -> np.ndarray:
+    """d t / d x_c' of eq (54) at elongation x (..., m) m: c_a / (1 - lambda x), N s/m, with x
+    capped as in :func:`~neck_sim.analytic.dynamics.cable_tension`; 0 where slack."""
+    cab = params.cables
+    k, lam = np.asarray(cab.k), np.asarray(cab.lam)
+    xe = np.clip(np.asarray(x, dtype=float), 0.0, cap_elongation(k, lam, cab.t_cap))
+    return np.where(np.asarray(x) > 0, np.asarray(cab.c_a) / (1.0 - lam * xe), 0.0)
+
+
 def linearise(params: NeckParams, alpha=None, *, t_min: float | None = None,
               friction_scale: float = 0.3) -> LinearNeck:
     """:class:`LinearNeck` at pose ``alpha`` (N,) rad (default straight), held at rest with the
@@ -119,10 +127,9 @@ def linearise(params: NeckParams, alpha=None, *, t_min: float | None = None,
     lower = np.full(m, act.t_min if t_min is None else float(t_min))
     tension = distribute_tensions(Z, gravity_spring_torque(a, params), lower, 1e12).requested
     x = tension_elongation(tension, params)
-    c_a = np.asarray(cab.c_a, dtype=float) / (1.0 - np.asarray(cab.lam) * x)
     slope = (2 / np.pi) * np.asarray(fr.f_s, dtype=float) * fr.c_s * act.R / act.r_d
     return LinearNeck(Z=Z, Mn=mass_matrix(a, params, motors=False), Kf=force_stiffness(a, tension, params),
-                      Kc=tension_slope(x, params), C=c_a, m_r=act.reflected_inertia,
+                      Kc=tension_slope(x, params), C=cable_damping(x, params), m_r=act.reflected_inertia,
                       friction=friction_scale * slope, tension=tension, elongation=x)
 
 
@@ -257,10 +264,8 @@ class ElasticLQRController:
         Z = ck.Z
         x = ck.lengths + s
         t = cable_tension(x, s_dot - Z.T @ ad, p)
-        lam = np.asarray(p.cables.lam)
-        damping = np.where(x > 0, np.asarray(p.cables.c_a) / (1.0 - lam * np.maximum(x, 0.0)), 0.0)
-        Ka = potential_hessian(a, p) + _cable_curvature_term(ck.Zdot, t) + (Z * tension_slope(x, p)) @ Z.T
-        Ca = (Z * damping) @ Z.T
+        Ka = force_stiffness(a, t, p) + (Z * tension_slope(x, p)) @ Z.T
+        Ca = (Z * cable_damping(x, p)) @ Z.T
         rhs = Z @ t - ld.c - ld.g
         delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (rhs - dt * Ka @ ad))
         self.alpha_dot = ad + delta
