@@ -35,6 +35,7 @@ from scipy.linalg import expm, solve_discrete_are
 from controllers.computed_torque import (ComputedTorqueController, ControlLaw, ControlStep, MotorReference,
                                          OutsideWorkspaceError)
 from controllers.tension import distribute_tensions
+from controllers.trajectories import reference_feedforward
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, linkage_dynamics
@@ -42,7 +43,7 @@ from neck_sim.analytic.statics import force_stiffness, tension_elongation, tensi
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams
 
-__all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "closed_loop_rates", "reference_forces",
+__all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "closed_loop_rates",
            "ElasticLQRController"]
 
 
@@ -184,17 +185,6 @@ def closed_loop_rates(lin_plant: LinearNeck, K: np.ndarray, dt: float) -> np.nda
     return rates[np.argsort(-rates.real)]
 
 
-def reference_forces(ref: MotorReference, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
-    """Law 2's feed-forward at the reference (no feedback): gamma (..., N) N m of eq (66) with
-    w = alpha_d'' and the eq (63)-(65) forces (..., m) N that produce it, unclipped (as
-    :func:`controllers.trajectories.feedforward_forces` does along a whole trajectory)."""
-    a = ref.alpha
-    Z = transmission_matrix(a, params)
-    gamma = (np.einsum("...ij,...j->...i", mass_matrix(a, params), ref.alpha_ddot) + gravity_spring_torque(a, params)
-             + np.einsum("...ij,...j->...i", Z, ref.friction))
-    return gamma, distribute_tensions(Z, gamma, ref.lower, 1e12).requested
-
-
 class ElasticLQRController:
     """Law 2's feed-forward plus LQR feedback on a neck observer (see the module docstring).
 
@@ -290,7 +280,7 @@ class ElasticLQRController:
             raise OutsideWorkspaceError(
                 f"alpha_hat: joint {j + 1} estimated at {np.degrees(self.alpha[j]):.1f} deg, outside the "
                 f"workspace |alpha| <= {np.degrees(a_max):.1f} deg")
-        gamma, f_ff = reference_forces(ref, p)
+        gamma, f_ff = reference_feedforward(ref, p)
         # the reference state: cables stretched by the feed-forward tension (force minus the believed
         # friction and the reference's motor inertia), motors at the speeds of eq (21)
         tension = np.maximum(f_ff - ref.friction - self.lin.m_r * self._ratio * ref.theta_ddot, 0.0)

@@ -48,8 +48,13 @@ def _make_plant(params: NeckParams, rigid_cables: bool, seed: int):
 def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
                   log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
                   rigid_cables: bool = False, controller_params: NeckParams | None = None,
-                  controller_kwargs: Mapping | None = None, plant_factory=None) -> dict[str, RunResult]:
+                  controller_kwargs: Mapping | None = None, plant_factory=None,
+                  controller: str = "computed-torque") -> dict[str, RunResult]:
     """Run each law on a fresh plant; returns ``{"law 1": RunResult, ...}``.
+
+    ``controller="elastic-lqr"`` runs :class:`controllers.elastic_lqr.ElasticLQRController` (law 2's
+    feed-forward, LQR feedback on a neck observer: long necks on elastic cables) once instead of
+    the laws, labelled ``"elastic lqr"``.
 
     ``params`` are the plant's; ``controller_params`` the controller's model (default the same,
     e.g. ``params.replace(**{"geometry.r": 0.0})`` for a controller that ignores the pulleys).
@@ -59,14 +64,22 @@ def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
     """
     make = plant_factory or _make_plant
     model = params if controller_params is None else controller_params
+    info = {"experiment": "control test", "seed": seed, "rigid_cables": rigid_cables}
+    if controller == "elastic-lqr":
+        from controllers.elastic_lqr import ElasticLQRController
+        ctrl = ElasticLQRController(model, **dict(controller_kwargs or {}))
+        return {"elastic lqr": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
+                                               log_path=log_path("elastic-lqr") if log_path else None,
+                                               run_info={**info, "controller": "elastic-lqr"})}
+    if controller != "computed-torque":
+        raise ValueError(f"controller: unknown {controller!r} (computed-torque, elastic-lqr)")
     out = {}
     for law in laws:
         label = f"law {int(law)}"
         ctrl = ComputedTorqueController(model, law, **dict(controller_kwargs or {}))
         out[label] = run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
                                      log_path=log_path(f"law{int(law)}") if log_path else None,
-                                     run_info={"experiment": "control test", "seed": seed,
-                                               "rigid_cables": rigid_cables})
+                                     run_info=info)
     return out
 
 

@@ -23,7 +23,7 @@ from neck_sim.trajectory import (HOLD_TIME, MOVE_TIME, TRAJECTORIES, Trajectory,
                                  control_test_trajectory, cycloidal_path, identification_trajectory)
 from neck_sim.trajectory import make_trajectory as _make_trajectory
 
-__all__ = ["MOVE_TIME", "HOLD_TIME", "TrajectorySample", "Trajectory", "cycloidal_path",
+__all__ = ["MOVE_TIME", "HOLD_TIME", "TrajectorySample", "Trajectory", "cycloidal_path", "reference_feedforward",
            "control_test_trajectory", "identification_trajectory", "TRAJECTORIES", "make_trajectory",
            "feedforward_forces", "workspace_amplitude", "FORCE_MARGIN"]
 
@@ -43,12 +43,18 @@ def feedforward_forces(trajectory: Trajectory, params: NeckParams, sample_dt: fl
 
     ctrl = ComputedTorqueController(params, ControlLaw.FRICTION)
     t = np.arange(0.0, trajectory.duration + 0.5 * sample_dt, sample_dt)
-    ref = ctrl.motor_reference(trajectory.sample(t))
+    return reference_feedforward(ctrl.motor_reference(trajectory.sample(t)), params)[1]
+
+
+def reference_feedforward(ref, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
+    """Law 2's feed-forward at a :class:`~controllers.computed_torque.MotorReference` (no feedback):
+    gamma (..., N) N m of eq (66) with w = alpha_d'' and the eq (63)-(65) forces (..., N+1) N that
+    produce it, unclipped."""
     a = ref.alpha
     Z = transmission_matrix(a, params)
     gamma = (np.einsum("...ij,...j->...i", mass_matrix(a, params), ref.alpha_ddot)
              + gravity_spring_torque(a, params) + np.einsum("...ij,...j->...i", Z, ref.friction))
-    return distribute_tensions(Z, gamma, ref.lower, 1e12).requested         # 1e12 N: no clipping
+    return gamma, distribute_tensions(Z, gamma, ref.lower, 1e12).requested     # 1e12 N: no clipping
 
 
 def workspace_amplitude(name: str, params: NeckParams, duration_scale: float = 1.0, *,
