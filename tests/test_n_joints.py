@@ -87,18 +87,19 @@ def test_elastic_lqr_is_stable_for_the_friction_it_does_not_count_on():
 
 
 def test_the_command_line_runs_the_ten_joint_neck_with_the_elastic_lqr(tmp_path, capsys):
-    """`neck-sim simulate --n-joints 10`: law 2 stops and names the way out; the elastic LQR runs."""
+    """`neck-sim simulate --n-joints 10` runs the elastic LQR by default; law 2 stops and names it."""
     import json
 
     from neck_sim.cli import main
 
     base = ["simulate", "--n-joints", "10", "--duration-scale", str(SHORT), "--no-log", "--no-progress"]
-    assert main(base) == 2
+    assert main(base + ["--law", "2"]) == 2
     err = capsys.readouterr().err
     assert "outside the workspace" in err and "try --controller elastic-lqr" in err
     assert main(base + ["--controller", "elastic-lqr", "--law", "2"]) == 2
     assert "drop --law" in capsys.readouterr().err
     js = tmp_path / "m.json"
-    assert main(base + ["--controller", "elastic-lqr", "--json", str(js)]) == 0
+    assert main(base + ["--json", str(js)]) == 0
+    assert "elastic LQR" in capsys.readouterr().out
     run = json.loads(js.read_text())["elastic lqr"]["metrics"]
     assert run["slack_samples"] == 0 and run["saturated_samples"] == 0 and run["tracking_error_true"] < 0.25

@@ -8,6 +8,7 @@ from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_
 import os
 
 HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
+LQR_FROM_JOINTS = 9      # law 2 saturates from N = 9 and diverges at 10 on elastic cables (README, Known limitations)
 
 
 def add_arguments(parser) -> None:
@@ -16,9 +17,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--law", type=int, nargs="+", choices=(1, 2, 3), default=None, metavar="{1,2,3}",
                         help="control law(s) of §6.3: 1 no friction, 2 friction, 3 friction + elastic "
                              "estimator (default 2; several run one after the other)")
-    parser.add_argument("--controller", choices=("computed-torque", "elastic-lqr"), default="computed-torque",
+    parser.add_argument("--controller", choices=("computed-torque", "elastic-lqr"), default=None,
                         help="computed-torque: the paper's laws (--law); elastic-lqr: law 2's feed-forward plus LQR "
-                             "feedback on a neck observer, for long necks on elastic cables (N >= 6)")
+                             "feedback on a neck observer, for long necks on elastic cables (default: elastic-lqr "
+                             f"for N >= {LQR_FROM_JOINTS} on elastic cables without --law, else computed-torque)")
     parser.add_argument("-o", "--output", metavar="LOG",
                         help="MCAP log path (several runs: the run's label is added before .mcap); "
                              "default logs/simulate-<trajectory>-<run>-<time>.mcap")
@@ -66,7 +68,14 @@ def run(args) -> int:
     params = params_from_args(args)
     if args.table3 and (args.rigid_cables or args.no_pulleys):
         raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")
-    lqr = args.controller == "elastic-lqr"
+    controller = args.controller
+    if controller is None:
+        controller = ("elastic-lqr" if params.n_joints >= LQR_FROM_JOINTS and not (args.law or args.table3
+                      or args.rigid_cables or args.cable_model) else "computed-torque")
+        if controller == "elastic-lqr":
+            print(f"N = {params.n_joints} on elastic cables: the elastic LQR (the paper's laws lose necks this "
+                  "long; --law 2 to run law 2 anyway)")
+    lqr = controller == "elastic-lqr"
     if lqr and (args.law or args.table3 or args.cable_model):
         raise ValueError("--controller elastic-lqr has its own feedback: drop --law, --table3 and --cable-model")
     laws = args.law or [2]
@@ -95,7 +104,7 @@ def run(args) -> int:
             labelled = ex.control_tests(
                 params, traj, laws, log_path=_log_namer(args, name, len(laws) > 1 and not lqr), progress=progress,
                 seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs,
-                controller=args.controller)
+                controller=controller)
         except RuntimeError as exc:
             if lqr or args.rigid_cables or params.n_joints < 6:
                 raise
