@@ -92,6 +92,9 @@ _SOURCE_COLORS = {"truth": (0.85, 0.85, 0.85, 1.0), "estimate": (1.0, 0.55, 0.0,
                   "camera": (0.2, 0.8, 1.0, 0.8)}
 
 
+# Drawn coordinates (m) and quaternion components to 1 um / 1e-6: finer than any screen shows, and
+# the shorter numbers halve what the scene costs to write and compress.  The contract topics stay exact.
+_DRAWN_DIGITS = 6
 _STAMP = {"sec": jsonrecords.SEC, "nsec": jsonrecords.NSEC}
 
 
@@ -196,9 +199,10 @@ def visualization_batches(log_times, alphas, params: NeckParams, source: str, tf
     kin = forward_kinematics(alphas, params, allow_outside_range=True)   # a diverged estimate is still drawn
     out = [Batch(SCENE_TOPIC, "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA,
                  _scene_template(params.n_joints, source, params.routing),
-                 np.asarray(kin.corners, dtype=float).reshape(len(log_ns), -1), log_ns)]
+                 np.round(np.asarray(kin.corners, dtype=float).reshape(len(log_ns), -1), _DRAWN_DIGITS), log_ns)]
     if tf:
         out.append(Batch(TF_TOPIC, "foxglove.FrameTransforms", FRAME_TRANSFORMS_SCHEMA,
                          _frame_transforms_template(params.n_joints),
-                         _frame_transform_values(kin.frame_origin, kin.frame_angle), log_ns))
+                         np.round(_frame_transform_values(kin.frame_origin, kin.frame_angle), _DRAWN_DIGITS),
+                         log_ns))
     return out
