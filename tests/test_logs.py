@@ -387,7 +387,8 @@ def test_foxglove_frames_follow_the_truth(tmp_path):
     for i in range(4):
         tr = frames[f"bar{i}"]["translation"]
         assert frames[f"bar{i}"]["parent_frame_id"] == "neck"
-        assert tr["x"] == pytest.approx(0.0, abs=1e-12) and tr["y"] == pytest.approx(i * h, abs=1e-12)
+        # drawn to 1e-6 m: the nearest micrometre
+        assert tr["x"] == pytest.approx(0.0, abs=1e-12) and tr["y"] == pytest.approx(i * h, abs=5.000001e-7)
     bent = {x["child_frame_id"]: x for x in json.loads(tf[1][1].data)["transforms"]}
     for i, phi in enumerate(np.concatenate([[0.0], np.cumsum(alpha[1])])):
         q = bent[f"bar{i}"]["rotation"]
