@@ -478,8 +478,7 @@ class Plant:
             raise RuntimeError("plant: it is stepping in an open PlantBatch; step the batch (or close it) instead")
         solo = self._solo
         solo.forces[0] = self._check_forces(forces)
-        solo.step_checked()
-        if solo.fatal[0]:
+        if solo.step_checked():
             raise solo.diverged(0)
 
     def _camera_step(self, k: int) -> int:
@@ -499,7 +498,7 @@ class Plant:
 
     def encoders(self) -> np.ndarray:
         """Motor angles theta (m,) rad, quantised to the encoder resolution (nearest count)."""
-        return np.rint(self._out_theta * self._inv_res) * self._res
+        return _quantise(self._out_theta, self._inv_res, self._res, np.empty(self._n1))
 
     def camera_frame(self):
         """(t, alpha (N,)) of the camera frame taken during the last step (30 Hz, Gaussian noise
@@ -517,6 +516,12 @@ class Plant:
 
 
 # ----------------------------------------------------------------------------------------- batch
+
+def _quantise(theta: np.ndarray, inv_res, res, out: np.ndarray) -> np.ndarray:
+    """Encoder reading of motor angles theta (rad): the nearest count of resolution ``res`` (rad), into ``out``."""
+    np.multiply(theta, inv_res, out=out)
+    return np.multiply(np.rint(out, out=out), res, out=out)
+
 
 def truth_columns(n: int, m: int) -> dict[str, slice]:
     """Columns of :attr:`PlantBatch.out` (width 3m + 2n + 1) for N = n joints and m cables; the C
@@ -600,6 +605,7 @@ class PlantBatch:
         self._cols = truth_columns(n, m)
         self.out = np.zeros((K, 3 * m + 2 * n + 1))
         self.fatal = np.zeros(K, dtype=np.int32)
+        self._encoders = np.zeros((K, m))
         self.active = np.ones(K, dtype=np.uint8)
         self._advance = np.full(K, nsub, dtype=np.int64)
         self.errors: list = [None] * K
@@ -609,6 +615,8 @@ class PlantBatch:
         self._c_args = (K, ptrs([ctypes.addressof(p._c) for p in plants]), ptrs([p.model._address for p in plants]),
                         ptrs([p.data._address for p in plants]), self.active.ctypes.data, nsub, m, n)
         self._c_out = (self.frame_alpha.ctypes.data, self.out.ctypes.data, self.fatal.ctypes.data)
+        self._c_forces, self._c_ctrl, self._c_capture = self.forces.ctypes.data, self.ctrl.ctypes.data, self.capture.ctypes.data
+        self._cam_lead = self._camera_lead()
 
     # -- state
     @property
@@ -617,14 +625,16 @@ class PlantBatch:
         return self.k * self.dt
 
     def encoders(self) -> np.ndarray:
-        """Motor angles theta (K, m) rad, quantised to each plant's encoder resolution (nearest count)."""
-        return np.rint(self.out[:, : self.m] * self._inv_res) * self._res
+        """Motor angles theta (K, m) rad, quantised to each plant's encoder resolution (nearest count);
+        a buffer the next call overwrites."""
+        return _quantise(self.out[:, : self.m], self._inv_res, self._res, self._encoders)
 
     def stop(self, i: int, error: BaseException) -> None:
         """Plant i steps no more; ``errors[i]`` says why."""
         self.errors[i] = error
         self.active[i] = 0
         self._advance[i] = 0
+        self.fatal[i] = 0
 
     def close(self) -> None:
         """Hand the stepping state back to the plants (they can step alone again)."""
@@ -636,6 +646,7 @@ class PlantBatch:
             solo.hist[0] = self.hist[i, : self._R[i]]
             solo.frames[0] = self.frames[i]
             solo._framed = True
+            solo._cam_lead = solo._camera_lead()
             p._batch = None
 
     def __enter__(self) -> "PlantBatch":
@@ -649,56 +660,67 @@ class PlantBatch:
         """One control period for the active plants (forces (K, m) N); returns the indices of the
         plants stopped in it (bad forces, diverged simulation), whose errors are in ``errors``."""
         try:
-            f = np.asarray(forces, dtype=float)
+            f = forces if type(forces) is np.ndarray and forces.dtype == np.float64 else np.asarray(forces, dtype=float)
         except (TypeError, ValueError):
             f = None
         if f is None or f.shape != (self.K, self.m):
             raise ValueError(f"forces: expected shape ({self.K}, {self.m}) (one row of cable forces per plant), "
                              f"got {np.shape(forces)}")
         stopped = []
-        ok = np.isfinite(f).all(axis=1)
-        if not ok.all():
+        if not math.isfinite(f.sum()):              # one reduction; the rows only when something is off
+            ok = np.isfinite(f).all(axis=1)
             for i in np.flatnonzero(~ok & (self.active > 0)):
                 self.stop(i, ValueError(f"forces: contains NaN or infinity: {f[i].tolist()}"))
                 stopped.append(int(i))
             f = np.where(ok[:, None], f, 0.0)
         np.minimum(np.maximum(f, 0.0, out=self.forces), self._fmax, out=self.forces)
-        self.step_checked()
-        if self.fatal.any():
+        if self.step_checked():
             for i in np.flatnonzero(self.fatal.astype(bool) & (self.active > 0)):
                 self.stop(i, self.diverged(i))
                 stopped.append(int(i))
         return stopped
 
-    def step_checked(self) -> None:
-        """One control period with ``self.forces`` (K, m) already clipped; ``fatal`` flags divergence."""
-        K, nsub, f, k0 = self.K, self.nsub, self.forces, self.k
-        cur = k0 // nsub
-        self.hist[self._rows, cur % self._R] = f
+    def step_checked(self) -> int:
+        """One control period with ``self.forces`` (K, m) already clipped; returns how many plants
+        have ``fatal`` set (their simulation diverged)."""
+        nsub, k0 = self.nsub, self.k
         per_substep = self._delayed.size > 0
         if per_substep:
+            cur = k0 // nsub
+            self.hist[self._rows, cur % self._R] = self.forces
             self._delayed_controls(k0, cur)
         if self._framed:
-            self.frames = [None] * K
+            self.frames = [None] * self.K
             self._framed = False
-        due = np.flatnonzero((self.next_cam <= k0 + nsub) & (self.active > 0))
-        if due.size:
+        due = None
+        if self._cam_lead <= nsub:               # some plant may take a camera frame in this period
+            due = np.flatnonzero((self.next_cam <= k0 + nsub) & (self.active > 0))
             start = k0.copy()
             self._schedule_frames(due, start)
         if _DISPATCH.backend == "native":
             previous = _DISPATCH.enter()
             try:
-                ctrl = self.ctrl if per_substep else f
-                if _DISPATCH.lib.step_batch(*self._c_args, ctrl.ctypes.data, int(per_substep),
-                                            self.capture.ctypes.data if due.size else None, *self._c_out) < 0:
-                    raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
+                fatal = _DISPATCH.lib.step_batch(*self._c_args, self._c_ctrl if per_substep else self._c_forces,
+                                                 int(per_substep), self._c_capture if due is not None else None,
+                                                 *self._c_out)
             finally:
                 _DISPATCH.leave(previous)
+            if fatal < 0:
+                raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
         else:
-            self._step_python(per_substep, due.size > 0)
+            fatal = self._step_python(per_substep, due is not None)
         k0 += self._advance                      # self.k, in place
-        if due.size:
+        if due is None:
+            self._cam_lead -= nsub
+        else:
             self._take_frames(due, start)
+            self._cam_lead = self._camera_lead()
+        return fatal
+
+    def _camera_lead(self) -> int:
+        """Sub-steps until the first active plant's next camera frame."""
+        lead = (self.next_cam - self.k)[self.active > 0]
+        return int(lead.min()) if lead.size else 1 << 62
 
     def _delayed_controls(self, k0: np.ndarray, cur: np.ndarray) -> None:
         """ctrl (K, n_sub, m): the command in force at each sub-step.  The command of period p is
@@ -735,7 +757,7 @@ class PlantBatch:
             self.frames[i] = frame
         self._framed = True
 
-    def _step_python(self, per_substep: bool, capture: bool) -> None:
+    def _step_python(self, per_substep: bool, capture: bool) -> int:
         """The C loop of ``neck_step_batch`` with the Python callback."""
         previous = _DISPATCH.enter()
         try:
@@ -755,6 +777,7 @@ class PlantBatch:
                 self.fatal[i] = any(w.number for w in plant._fatal_warnings)
         finally:
             _DISPATCH.leave(previous)
+        return int(self.fatal[self.active > 0].sum())
 
     def _copy_outputs(self, i: int) -> None:
         p, o, c = self.plants[i], self.out[i], self._cols

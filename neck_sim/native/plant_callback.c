@@ -186,12 +186,13 @@ static void rigid_tensions(const neck_plant* p, const mjData* d, double* out) {
    sub-step s go to frame_alpha + (i nsub + s) njoint.  Then out + i nout receives
    theta (ncable), alpha, alpha_dot (njoint), tension, elongation (ncable), loop_gap, and fatal[i]
    is 1 if MuJoCo reported a singular inertia or a bad qpos / qvel / qacc since the last reset.
-   Returns -1 (nothing stepped) if a plant's sizes differ from ncable, njoint. */
+   Returns how many active plants have fatal set, or -1 (nothing stepped) if a plant's sizes
+   differ from ncable, njoint. */
 int neck_step_batch(int K, neck_plant* const* plants, const mjModel* const* models, mjData* const* datas,
                     const unsigned char* active, int nsub, int ncable, int njoint,
                     const double* ctrl, int ctrl_per_substep, const int* capture, double* frame_alpha,
                     double* out, int* fatal) {
-  int nout = 3 * ncable + 2 * njoint + 1;
+  int nout = 3 * ncable + 2 * njoint + 1, nfatal = 0;
   for (int i = 0; i < K; i++) {
     if (plants[i]->ncable != ncable || plants[i]->njoint != njoint) return -1;
   }
@@ -223,6 +224,7 @@ int neck_step_batch(int K, neck_plant* const* plants, const mjModel* const* mode
     o[nout - 1] = p->loop_gap;
     fatal[i] = d->warning[mjWARN_INERTIA].number > 0 || d->warning[mjWARN_BADQPOS].number > 0 ||
                d->warning[mjWARN_BADQVEL].number > 0 || d->warning[mjWARN_BADQACC].number > 0;
+    nfatal += fatal[i];
   }
-  return 0;
+  return nfatal;
 }
