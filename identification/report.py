@@ -89,6 +89,7 @@ def format_summary(diag) -> str:
     if diag.leftover is not None and diag.leftover.significant:
         lines.append("  unexplained structure left (strongest first):")
         lines += [f"      {x.describe()}" for x in diag.leftover.found[:3]]
+    lines += [f"  note: {n}" for n in diag.notes]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
 
@@ -327,6 +328,8 @@ def _markdown(diag, figures: dict) -> str:
     else:
         L += ["No candidate effect improves the held-out prediction significantly: the model explains the data "
               "to within its noise.", ""]
+    if diag.notes:
+        L += ["## Notes", ""] + [f"* {n}" for n in diag.notes] + [""]
     L += _unexplained_lines(diag)
     for f in diag.findings:
         L += [f"### Gain of step {f.step} ({f.effect}), cross-validated residual RMS", "",

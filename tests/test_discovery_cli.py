@@ -195,3 +195,43 @@ def test_look_alikes_are_told_apart_or_reported_together(monkeypatch):
     # nothing significant: none
     weak = disc.CandidateScore(Term("payload", ()), None, 1, 1, 1, 0.01, 0.01, {}, 0.5, 0.5, True, False)
     assert disc.decide(None, [weak])[0] == "none"
+
+
+def test_accepted_out_of_range_forces_are_named_in_every_output(viscous_log, tmp_path, capsys):
+    """Issue 14 item 2: forces accepted on request are said in the summary, the JSON and the report."""
+    _, path = viscous_log
+    spiked = tmp_path / "spiked.mcap"
+    with open(path, "rb") as fh, open(spiked, "wb") as out:       # one motors sample at -5 N, by the mcap library
+        reader = make_reader(fh)
+        w = Writer(out)
+        w.start()
+        summary = reader.get_summary()
+        ids = {}
+        for ch in summary.channels.values():
+            sc = summary.schemas[ch.schema_id]
+            ids[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
+                                            w.register_schema(sc.name, sc.encoding, sc.data))
+        for m in reader.iter_metadata():
+            w.add_metadata(m.name, dict(m.metadata))
+        k = 0
+        for _, ch, msg in reader.iter_messages(topics=["/neck/motors", "/neck/camera"]):
+            data = msg.data
+            if ch.topic == "/neck/motors":
+                if k == 1000:
+                    sample = json.loads(data)
+                    sample["force"][1] = -5.0
+                    data = json.dumps(sample).encode()
+                k += 1
+            w.add_message(ids[ch.id], msg.log_time, data, msg.publish_time)
+        w.finish()
+    assert main(["diagnose", str(spiked), "--quiet"]) == 2
+    assert "--accept-out-of-range-forces" in capsys.readouterr().err
+    js, rep = tmp_path / "d.json", tmp_path / "report"
+    code = main(["diagnose", str(spiked), "--steps", "1", "--no-resim", "--candidates", "viscous_friction",
+                 "--accept-out-of-range-forces", "--json", str(js), "--report", str(rep), "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0
+    said = [line for line in out.splitlines() if "accepted out-of-range forces" in line]
+    assert len(said) == 1 and "sample 1000" in said[0] and "force2" in said[0]
+    assert any("accepted out-of-range forces" in n and "sample 1000" in n for n in json.loads(js.read_text())["notes"])
+    assert "accepted out-of-range forces" in (rep / "report.md").read_text()

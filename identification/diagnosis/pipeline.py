@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 
@@ -118,4 +119,6 @@ def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, 
     t_prep = time.perf_counter() - t0
     diag = diagnose(data, model, s, progress=progress, source=os.fspath(log.path))
     diag.timings["preprocessing"] = t_prep
+    if log.warnings:      # what the reader accepted on request travels with every output of the diagnosis
+        diag = dataclasses.replace(diag, notes=tuple(f"input: {w}" for w in log.warnings) + diag.notes)
     return diag

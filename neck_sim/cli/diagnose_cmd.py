@@ -6,7 +6,7 @@ import os
 import sys
 
 from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
-                                 positive_int, probability, report_input_warnings)
+                                 positive_int, probability)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -61,11 +61,9 @@ def run(args) -> int:
     if params is not None and params.n_joints != log.n_joints:
         raise ValueError(f"--params {args.params}: {params.n_joints} joints, the log has {log.n_joints}")
     diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
-    print(format_summary(diag))
-    accepted = report_input_warnings(log.warnings)
+    print(format_summary(diag))               # its notes name what the reader accepted on request
     if args.json:
-        from neck_sim.atomic import atomic_write_json
-        atomic_write_json(args.json, {**diag.to_dict(), **accepted})
+        diag.write_json(args.json)
         print(f"wrote {args.json}", file=sys.stderr)
     if args.extended:
         diag.write_model(args.extended)

@@ -11,15 +11,18 @@ Geometry comes from :func:`neck_sim.analytic.forward_kinematics`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+import orjson
 
 from neck_sim.analytic import forward_kinematics
+from neck_sim.logs import jsonrecords
 from neck_sim.params import NeckParams, paper_routing
 
 __all__ = ["TF_TOPIC", "SCENE_TOPIC", "FRAME_TRANSFORMS_SCHEMA", "SCENE_UPDATE_SCHEMA",
-           "frame_transforms", "scene_update", "visualization_messages"]
+           "Batch", "frame_transforms", "scene_update", "visualization_batches"]
 
 TF_TOPIC = "/tf"
 SCENE_TOPIC = "/neck/scene"
@@ -89,8 +92,65 @@ _SOURCE_COLORS = {"truth": (0.85, 0.85, 0.85, 1.0), "estimate": (1.0, 0.55, 0.0,
                   "camera": (0.2, 0.8, 1.0, 0.8)}
 
 
-def _stamp(log_time: int) -> dict:
-    return {"sec": log_time // 1_000_000_000, "nsec": log_time % 1_000_000_000}
+_STAMP = {"sec": jsonrecords.SEC, "nsec": jsonrecords.NSEC}
+
+
+def _point(slot: int) -> dict:
+    return {"x": jsonrecords.Slot(slot), "y": jsonrecords.Slot(slot + 1), "z": 0.0}
+
+
+def _frame_transforms_template(n_joints: int) -> jsonrecords.Template:
+    """Values: frame origins (N+1, 2) m flattened, then sin(phi/2) (N+1,), then cos(phi/2) (N+1,)."""
+    n = n_joints + 1
+    out = [{"timestamp": _STAMP, "parent_frame_id": "world", "child_frame_id": "neck",
+            "translation": {"x": 0.0, "y": 0.0, "z": 0.0}, "rotation": _PLANE_TO_Z_UP}]
+    for i in range(n):
+        out.append({"timestamp": _STAMP, "parent_frame_id": "neck", "child_frame_id": f"bar{i}",
+                    "translation": _point(2 * i),
+                    "rotation": {"x": 0.0, "y": 0.0, "z": jsonrecords.Slot(2 * n + i),
+                                 "w": jsonrecords.Slot(3 * n + i)}})
+    return jsonrecords.template({"transforms": out})
+
+
+def _frame_transform_values(frame_origin, frame_angle) -> np.ndarray:
+    """(K, 4 (N+1)) values of :func:`_frame_transforms_template` from origins (K, N+1, 2), angles (K, N+1)."""
+    origin = np.asarray(frame_origin, dtype=float)
+    half = 0.5 * np.asarray(frame_angle, dtype=float)
+    return np.concatenate([origin.reshape(len(origin), -1), np.sin(half), np.cos(half)], axis=1)
+
+
+def _line(kind: int, corner_ids, rgba, thickness: float) -> dict:
+    return {"type": kind, "pose": _IDENTITY_POSE, "thickness": thickness, "scale_invariant": False,
+            "points": [_point(2 * c) for c in corner_ids],
+            "color": dict(zip("rgba", rgba)), "colors": [], "indices": []}
+
+
+def _scene_template(n_joints: int, source: str, routing=None) -> jsonrecords.Template:
+    """Values: the joint corners (N, 4, 2) m flattened (corner c of joint i is point 4 i + c)."""
+    A, B, C, D = range(4)
+    bars, springs = [], []
+    for i in range(n_joints):
+        a, b, c, d = (4 * i + k for k in (A, B, C, D))
+        if i == 0:
+            bars += [a, b]
+        bars += [c, d, a, d, b, c]
+        springs += [a, c, b, d]
+    lines = [_line(2, bars, _SOURCE_COLORS[source], 0.004)]
+    if source == "truth":
+        lines.append(_line(2, springs, (0.5, 0.5, 0.5, 0.6), 0.0015))
+        routing = paper_routing(n_joints) if routing is None else routing
+        index = {"A": A, "B": B, "C": C, "D": D}
+        for j, cable in enumerate(routing.cables):
+            end = ("C" if cable.side == "left" else "D", cable.ends_at)
+            path = [4 * (i - 1) + index[corner] for corner, i in cable.pulleys() + (end,)]
+            rgb = _LEFT_COLOR if cable.side == "left" else _CABLE_COLORS[min(j, 2)]
+            lines.append(_line(0, path, (*rgb, 1.0), 0.002))
+    entity = {"timestamp": _STAMP, "frame_id": "neck", "id": f"neck/{source}",
+              "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+              "metadata": [{"key": "source", "value": source}],
+              "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": lines,
+              "triangles": [], "texts": [], "models": []}
+    return jsonrecords.template({"deletions": [], "entities": [entity]})
 
 
 def frame_transforms(log_time: int, frame_origin, frame_angle) -> dict:
@@ -98,20 +158,9 @@ def frame_transforms(log_time: int, frame_origin, frame_angle) -> dict:
 
     Frames and angles are those of :class:`neck_sim.analytic.Kinematics` for one pose.
     """
-    stamp = _stamp(log_time)
-    out = [{"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": "neck",
-            "translation": {"x": 0.0, "y": 0.0, "z": 0.0}, "rotation": _PLANE_TO_Z_UP}]
-    for i, ((x, y), phi) in enumerate(zip(np.asarray(frame_origin).tolist(), np.asarray(frame_angle).tolist())):
-        out.append({"timestamp": stamp, "parent_frame_id": "neck", "child_frame_id": f"bar{i}",
-                    "translation": {"x": x, "y": y, "z": 0.0},
-                    "rotation": {"x": 0.0, "y": 0.0, "z": math.sin(phi / 2), "w": math.cos(phi / 2)}})
-    return {"transforms": out}
-
-
-def _line(kind: int, points, rgba, thickness: float) -> dict:
-    return {"type": kind, "pose": _IDENTITY_POSE, "thickness": thickness, "scale_invariant": False,
-            "points": [{"x": x, "y": y, "z": 0.0} for x, y in points],
-            "color": dict(zip("rgba", rgba)), "colors": [], "indices": []}
+    origin = np.asarray(frame_origin, dtype=float)
+    values = _frame_transform_values(origin[None], np.asarray(frame_angle, dtype=float)[None])[0]
+    return orjson.loads(jsonrecords.render(_frame_transforms_template(len(origin) - 1), values, log_time))
 
 
 def scene_update(log_time: int, corners, source: str, routing=None) -> dict:
@@ -121,39 +170,35 @@ def scene_update(log_time: int, corners, source: str, routing=None) -> dict:
     each source is one entity, replaced by the next update of the same source.  Cables follow
     ``routing`` (default the paper's) through the axes of the pulleys they wrap.
     """
-    corners = np.asarray(corners).tolist()
-    bars, springs = [], []
-    for i, (A, B, C, D) in enumerate(corners):
-        if i == 0:
-            bars += [A, B]
-        bars += [C, D, A, D, B, C]
-        springs += [A, C, B, D]
-    lines = [_line(2, bars, _SOURCE_COLORS[source], 0.004)]
-    if source == "truth":
-        lines.append(_line(2, springs, (0.5, 0.5, 0.5, 0.6), 0.0015))
-        routing = paper_routing(len(corners)) if routing is None else routing
-        index = {"A": 0, "B": 1, "C": 2, "D": 3}
-        for j, cable in enumerate(routing.cables):
-            end = ("C" if cable.side == "left" else "D", cable.ends_at)
-            path = [corners[i - 1][index[corner]] for corner, i in cable.pulleys() + (end,)]
-            rgb = _LEFT_COLOR if cable.side == "left" else _CABLE_COLORS[min(j, 2)]
-            lines.append(_line(0, path, (*rgb, 1.0), 0.002))
-    entity = {"timestamp": _stamp(log_time), "frame_id": "neck", "id": f"neck/{source}",
-              "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
-              "metadata": [{"key": "source", "value": source}],
-              "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": lines,
-              "triangles": [], "texts": [], "models": []}
-    return {"deletions": [], "entities": [entity]}
+    corners = np.asarray(corners, dtype=float)
+    return orjson.loads(jsonrecords.render(_scene_template(len(corners), source, routing), corners.reshape(-1),
+                                           log_time))
 
 
-def visualization_messages(log_times, alphas, params: NeckParams, source: str, tf: bool):
-    """Yield (topic, log_time, message dict) for poses ``alphas`` (K, N) of one source, in time order.
+@dataclasses.dataclass(frozen=True)
+class Batch:
+    """K messages of one topic: their template, values (K, V) and log times (K,) int64 ns."""
+    topic: str
+    schema_name: str
+    schema: dict
+    template: jsonrecords.Template
+    values: np.ndarray
+    log_ns: np.ndarray
+
+
+def visualization_batches(log_times, alphas, params: NeckParams, source: str, tf: bool) -> list[Batch]:
+    """The ``/neck/scene`` (and, if ``tf``, ``/tf``) messages of poses ``alphas`` (K, N) of one source.
 
     The forward kinematics of all K poses is computed in one batch.
     """
-    alphas = np.asarray(alphas, dtype=float).reshape(len(log_times), params.n_joints)
+    log_ns = np.asarray(log_times, dtype=np.int64)
+    alphas = np.asarray(alphas, dtype=float).reshape(len(log_ns), params.n_joints)
     kin = forward_kinematics(alphas, params, allow_outside_range=True)   # a diverged estimate is still drawn
-    for k, ns in enumerate(log_times):
-        if tf:
-            yield TF_TOPIC, ns, frame_transforms(ns, kin.frame_origin[k], kin.frame_angle[k])
-        yield SCENE_TOPIC, ns, scene_update(ns, kin.corners[k], source, params.routing)
+    out = [Batch(SCENE_TOPIC, "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA,
+                 _scene_template(params.n_joints, source, params.routing),
+                 np.asarray(kin.corners, dtype=float).reshape(len(log_ns), -1), log_ns)]
+    if tf:
+        out.append(Batch(TF_TOPIC, "foxglove.FrameTransforms", FRAME_TRANSFORMS_SCHEMA,
+                         _frame_transforms_template(params.n_joints),
+                         _frame_transform_values(kin.frame_origin, kin.frame_angle), log_ns))
+    return out

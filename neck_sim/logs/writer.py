@@ -21,14 +21,12 @@ import sys
 import weakref
 
 import numpy as np
-import orjson
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from neck_sim.atomic import discard, output_error, publish, temp_file_beside
-from neck_sim.jit import kernel
-from neck_sim.logs import foxglove
+from neck_sim.logs import foxglove, jsonrecords
 from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TopicSpec, neck_metadata,
                                     topic_schema)
 from neck_sim.params import NeckParams, default_params
@@ -38,51 +36,6 @@ __all__ = ["LogWriter", "MJCF_ATTACHMENT"]
 MJCF_ATTACHMENT = "neck.xml"
 _MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 ns)
 _PENDING_ROWS = 256          # samples buffered by the per-sample methods before encoding
-_MESSAGE_HEADER = 31         # opcode (1) + record length (8) + channel, sequence, log and publish time (22)
-
-
-@kernel
-def _message_records(numbers, pieces, piece_start, channel, log_ns, out, offsets) -> int:
-    """MCAP Message records of T JSON payloads into ``out``; returns the bytes written.
-
-    ``numbers`` is the JSON text of a (T, F) array (``[[a,b],[c,d]]``), ``pieces`` the F + 1 constant
-    parts of a payload (``{"t":``, ``,"theta":[``, ``,``, ..., ``]}``) joined, ``piece_start`` (F + 2,)
-    their offsets.  Record r starts at ``offsets[r]``; its payload interleaves pieces and numbers.
-    """
-    n_fields = piece_start.shape[0] - 2
-    pos = 2                                   # after "[["
-    w = 0
-    for r in range(log_ns.shape[0]):
-        offsets[r] = w
-        head = w
-        out[w] = 0x05                         # opcode: Message
-        w += 9                                # record length filled in below
-        out[w] = channel & 0xFF
-        out[w + 1] = (channel >> 8) & 0xFF
-        for b in range(4):                    # sequence 0
-            out[w + 2 + b] = 0
-        t = log_ns[r]
-        for b in range(8):                    # log_time, publish_time (= log_time)
-            byte = (t >> (8 * b)) & 0xFF
-            out[w + 6 + b] = byte
-            out[w + 14 + b] = byte
-        w += 22
-        for f in range(n_fields + 1):
-            for i in range(piece_start[f], piece_start[f + 1]):
-                out[w] = pieces[i]
-                w += 1
-            if f == n_fields:
-                break
-            while numbers[pos] != 44 and numbers[pos] != 93:     # up to "," or "]"
-                out[w] = numbers[pos]
-                w += 1
-                pos += 1
-            pos += 1
-        pos += 2                              # "],[" between rows: "]" was taken, skip ",["
-        length = w - head - 9
-        for b in range(8):
-            out[head + 1 + b] = (length >> (8 * b)) & 0xFF
-    return w
 
 
 def _version(package: str) -> str:
@@ -252,16 +205,15 @@ class LogWriter:
         return ch
 
     def _layout(self, spec: TopicSpec):
-        """(field lengths, payload pieces joined, piece offsets) of a topic, built once."""
+        """(field lengths, payload template) of a topic, built once: ``{"t":..,"theta":[..],..}``."""
         layout = self._layouts.get(spec.name)
         if layout is None:
             lengths = spec.lengths(self._n, self.params.n_cables)
-            pieces = ['{"t":']
-            for i, (f, k) in enumerate(zip(spec.field_names, lengths)):
-                pieces += [("]" if i else "") + f',"{f}":['] + [","] * (k - 1)
-            pieces.append("]}")
-            starts = np.cumsum([0] + [len(p) for p in pieces]).astype(np.int64)
-            layout = self._layouts[spec.name] = (lengths, np.frombuffer("".join(pieces).encode(), np.uint8), starts)
+            doc, column = {"t": jsonrecords.Slot(0)}, 1
+            for f, k in zip(spec.field_names, lengths):
+                doc[f] = [jsonrecords.Slot(column + i) for i in range(k)]
+                column += k
+            layout = self._layouts[spec.name] = (lengths, jsonrecords.template(doc))
         return layout
 
     def _write(self, spec: TopicSpec, t: float, arrays) -> int:
@@ -350,17 +302,14 @@ class LogWriter:
             self._encode(spec, np.array([v for _, v in rows]), np.array([ns for ns, _ in rows], dtype=np.int64))
 
     def _encode(self, spec: TopicSpec, values: np.ndarray, ns: np.ndarray) -> None:
-        """JSON payloads of (T, F) checked values as MCAP records (numbers by orjson: shortest
-        round-trip text, what json.dumps writes up to exponent style), appended to the open chunk."""
-        _, pieces, starts = self._layout(spec)
+        """JSON payloads of (T, F) checked values as MCAP records, appended to the open chunk."""
         ch = self._channel(spec.topic, spec.schema_name, lambda: topic_schema(spec, self._n, self.params.n_cables))
-        numbers = np.frombuffer(orjson.dumps(np.ascontiguousarray(values), option=orjson.OPT_SERIALIZE_NUMPY),
-                                np.uint8)
-        out = np.empty(len(numbers) + len(ns) * (_MESSAGE_HEADER + len(pieces)), np.uint8)
-        offsets = np.empty(len(ns), np.int64)
-        size = _message_records(numbers, pieces, starts, ch, ns, out, offsets)
+        self._append_encoded(ch, self._layout(spec)[1], values, ns)
+
+    def _append_encoded(self, ch: int, tmpl: jsonrecords.Template, values: np.ndarray, ns: np.ndarray) -> None:
+        records, offsets = jsonrecords.message_records(tmpl, values, ns, ch)
         try:
-            self._append_records(ch, out[:size], offsets, ns)
+            self._append_records(ch, records, offsets, ns)
         except OSError as exc:                  # a full chunk is written to the file here
             raise output_error(self.path, exc) from None
 
@@ -375,7 +324,7 @@ class LogWriter:
         parts = _chunk_parts(w)
         if parts is None:
             for off, end, t in zip(offsets.tolist(), ends.tolist(), ns.tolist()):
-                w.add_message(ch, t, records[off + _MESSAGE_HEADER: end].tobytes(), t)
+                w.add_message(ch, t, records[off + jsonrecords.MESSAGE_HEADER: end].tobytes(), t)
             return
         builder, stats, finalize = parts
         i = 0
@@ -425,16 +374,12 @@ class LogWriter:
         for source, samples in self._viz.items():
             if not samples:
                 continue
-            times = [ns for ns, _ in samples]
+            times = np.array([ns for ns, _ in samples], dtype=np.int64)
             alphas = np.stack([a for _, a in samples])
-            for topic, ns, msg in foxglove.visualization_messages(times, alphas, self.params, source,
-                                                                   tf=source == tf_source):
-                if topic == foxglove.TF_TOPIC:
-                    ch = self._channel(topic, "foxglove.FrameTransforms", foxglove.FRAME_TRANSFORMS_SCHEMA)
-                else:
-                    ch = self._channel(topic, "foxglove.SceneUpdate", foxglove.SCENE_UPDATE_SCHEMA)
-                self._writer.add_message(ch, ns, orjson.dumps(msg), ns)   # compact JSON
-                self.counts[topic] += 1
+            for batch in foxglove.visualization_batches(times, alphas, self.params, source, tf=source == tf_source):
+                ch = self._channel(batch.topic, batch.schema_name, batch.schema)
+                self._append_encoded(ch, batch.template, batch.values, batch.log_ns)
+                self.counts[batch.topic] += len(batch.log_ns)
 
 
 def _drop_file(fh, tmp: str) -> None:
