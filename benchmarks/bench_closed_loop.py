@@ -85,8 +85,9 @@ def process_run(seed: int = 0, tree: str = ROOT) -> tuple[float, float, float]:
     """(wall s, CPU s, simulated s) of `neck-sim simulate --trajectory identification --law 2 -o` run
     from checkout ``tree`` (default this one)."""
     env = dict(os.environ, PYTHONPATH=tree + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    if tree != ROOT:       # its own compile cache: two sources of the C callback must not evict each other
+    if tree != ROOT:       # its own caches: nothing written into that tree, no eviction of this tree's library
         env["NECK_SIM_CACHE"] = os.path.join(tempfile.gettempdir(), "neck_sim_bench_baseline_cache")
+        env["NUMBA_CACHE_DIR"] = os.path.join(tempfile.gettempdir(), "neck_sim_bench_baseline_numba")
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
@@ -158,6 +159,8 @@ def main(argv=None) -> None:
         trees = [("this tree", ROOT)] + ([("baseline " + args.baseline_tree, args.baseline_tree)]
                                          if args.baseline_tree else [])
         runs = {label: (np.inf, np.inf, 0.0) for label, _ in trees}
+        if args.baseline_tree:
+            process_run(tree=args.baseline_tree)      # warm-up: its compile caches filled
         for _ in range(args.repeat if args.baseline_tree else 1):     # interleaved, least CPU of each
             for label, tree in trees:
                 r = process_run(tree=tree)

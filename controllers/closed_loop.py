@@ -4,8 +4,8 @@
 data, reproductions); ``run_closed_loop`` is its single-run case.  Each control period k
 (t_k = k / rate), for K independent runs at once:
 
-    theta_k = plant.encoders() for each run;   one compiled controller step for all K runs
-    plant.step(forces) for each run;          frame = plant.camera_frame()
+    theta_k = the K plants' encoders;   one compiled controller step for all K runs;
+    one PlantBatch step for all K plants (one native call);   their camera frames, if any
 
 and everything is recorded -- the measured topics (motors, camera, reference, estimate) and the
 simulation truth -- to arrays and, if asked, to an MCAP log written in bulk from those arrays
@@ -174,9 +174,10 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     ``plants``, ``controllers``, ``trajectories`` (and ``log_paths``, ``run_infos``, default None)
     are K-long sequences: each run has its own plant (seed, parameters, effects), controller (law,
     model, gains) and trajectory; all trajectories have the same number of control periods and
-    every controller the same N.  One compiled call advances the K controllers; the plants then
-    step one after another (each plant's physics runs through MuJoCo's process-wide callback).
-    Memory: about 8 (13 N + 7) K T bytes for T periods.
+    every controller the same N.  One compiled call advances the K controllers and one
+    :class:`neck_sim.plant.PlantBatch` call steps the K plants (objects of other types, e.g. a
+    wrapped plant, step alone through their ``step``); every run is recorded into (K, T, ...)
+    arrays.  Memory: about 8 (13 N + 10) K T bytes for T periods.
 
     Returns one entry per run: its :class:`RunResult`, or (``stop_on_error=False``) the
     RuntimeError that stopped it (controller failure, diverged plant) while the others go on.

@@ -30,9 +30,13 @@ file ``neck_sim/native/plant_callback.c``, compiled at first use by :mod:`neck_s
 cache (``$NECK_SIM_CACHE`` or ``~/.cache/neck_sim``); when no compiler is available a pure-Python
 callback with the same physics takes over (``set_backend``), 6-8x slower per control period.
 
-Stepping: :meth:`Plant.step` runs one control period (1/``control.rate_hz``) of physics
-sub-steps as ``mj_step2`` + ``mj_step`` x (n-1) + ``mj_step1``, so that after every period the
-position/velocity stages (tendon lengths, loop gaps, tensions) describe the current state.
+Stepping: a control period (1/``control.rate_hz``) is ``mj_step2`` + ``mj_step`` x (n-1) +
+``mj_step1``, so that after every period the position/velocity stages (tendon lengths, loop gaps,
+tensions) describe the current state; ``ctrl`` is set before each sub-step to the command then in
+force (actuation delay) and the joint angles are read where a camera frame is due.
+:class:`PlantBatch` runs such periods for K plants at once, with the native callback in one C
+call (``neck_step_batch``, which calls MuJoCo's ``mj_step*`` from C); :meth:`Plant.step` is its
+K = 1 case, so there is one stepping path.
 
 Rigid cables (the paper's rigid cable model, eq 25/32 with x_c = 0): ``Plant(...,
 rigid_cables=True)`` holds each cable tendon at its rest length with an equality constraint
