@@ -185,7 +185,8 @@ def main(argv=None) -> None:
         print(f"{'  the period in C (neck_step_batch, K = 1)':44}{us(c_call):10.1f} {c_call / bare:7.2f}   "
               f"the same steps called from Python: {phys / c_call:.2f}x")
         cb, per_period = callback_us(plant)
-        print(f"{'  native callback (x calls per period)':44}{cb * per_period:10.1f} {cb * per_period / us(bare):7.2f}   "
+        cb_period = cb * per_period
+        print(f"{'  native callback (x calls per period)':44}{cb_period:10.1f} {cb_period / us(bare):7.2f}   "
               f"{cb:.2f} us x {per_period}")
     print(f"real-time factor: {(K / rate) / full:.1f} simulated s per wall-clock s")
     if P.native_available():

@@ -284,8 +284,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                 advance(state, theta, k, tables, outs)
                 if status.any():
                     for i in np.flatnonzero((status != 0) & alive):
-                        exc = step_error(int(status[i]), state.values[i, 0, :n], controllers[i].params.geometry.alpha_max)
-                        fail(i, t_of(i, k), exc)
+                        fail(i, t_of(i, k), step_error(int(status[i]), state.values[i, 0, :n],
+                                                       controllers[i].params.geometry.alpha_max))
             else:
                 for i in np.flatnonzero(alive):
                     try:

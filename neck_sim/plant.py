@@ -65,8 +65,8 @@ from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["Plant", "PlantBatch", "truth_columns", "Truth", "PlantDivergedError", "set_backend", "get_backend", "native_available",
-           "NativeBuildError", "MAX_CABLES"]
+__all__ = ["Plant", "PlantBatch", "truth_columns", "Truth", "PlantDivergedError", "set_backend", "get_backend",
+           "native_available", "NativeBuildError", "MAX_CABLES"]
 
 
 class Truth(NamedTuple):
@@ -619,7 +619,8 @@ class PlantBatch:
         self._c_args = (K, ptrs([ctypes.addressof(p._c) for p in plants]), ptrs([p.model._address for p in plants]),
                         ptrs([p.data._address for p in plants]), self.active.ctypes.data, nsub, m, n)
         self._c_out = (self.frame_alpha.ctypes.data, self.out.ctypes.data, self.fatal.ctypes.data)
-        self._c_forces, self._c_ctrl, self._c_capture = self.forces.ctypes.data, self.ctrl.ctypes.data, self.capture.ctypes.data
+        self._c_forces, self._c_ctrl = self.forces.ctypes.data, self.ctrl.ctypes.data
+        self._c_capture = self.capture.ctypes.data
         self._cam_lead = self._camera_lead()
 
     # -- state
