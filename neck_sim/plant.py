@@ -575,7 +575,10 @@ class PlantBatch:
             if not fresh and p._batch is not None:
                 raise ValueError(f"PlantBatch: plant {i} is already in an open batch")
         K, n, m, nsub = len(plants), p0.n_joints, p0._n1, p0.substeps
-        self.plants, self.K, self.n, self.m, self.nsub = plants, K, n, m, nsub
+        # a plant's own batch refers to it weakly: no reference cycle, so a dropped plant leaves the
+        # C registry at once (not at the next cyclic garbage collection)
+        self.plants = [weakref.proxy(p) for p in plants] if fresh else plants
+        self.K, self.n, self.m, self.nsub = K, n, m, nsub
         self.dt, self.period = p0.timestep, p0.period
         col = lambda values: np.array(values, dtype=float)[:, None]   # noqa: E731  (K, 1) for broadcasting
         self._fmax = col([p._fmax for p in plants])

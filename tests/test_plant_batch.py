@@ -159,3 +159,21 @@ def test_batch_stops_only_the_failing_plants(params):
     with P.PlantBatch([plants[0]]):
         with pytest.raises(RuntimeError, match="open PlantBatch"):
             plants[0].step(np.zeros(m))
+
+
+def test_a_dropped_plant_leaves_the_registry_at_once(params):
+    """A plant's own batch must not keep it alive (no reference cycle): its C registry slot is
+    freed when the last reference goes, without waiting for the cyclic garbage collector."""
+    import gc
+
+    if not P.native_available():
+        pytest.skip("no C compiler")
+    pl = P.Plant(params, backend="native")
+    pl.step(np.full(params.n_cables, 20.0))
+    before = P._DISPATCH.lib.neck_registered()
+    gc.disable()
+    try:
+        del pl
+        assert P._DISPATCH.lib.neck_registered() == before - 1
+    finally:
+        gc.enable()
