@@ -282,7 +282,7 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                         rec_truth[i, k, sl] = getattr(truth, name)
             if compiled:
                 advance(state, theta, k, tables, outs)
-                if status.any():
+                if np.count_nonzero(status):          # a quarter of status.any()'s call overhead
                     for i in np.flatnonzero((status != 0) & alive):
                         fail(i, t_of(i, k), step_error(int(status[i]), state.values[i, 0, :n],
                                                        controllers[i].params.geometry.alpha_max))

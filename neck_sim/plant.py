@@ -327,7 +327,7 @@ class Plant:
         ix = self._ix
         c = PlantStruct()
         c.ncable, c.rigid, c.njoint = n1, int(self.rigid_cables), tp.n_joints
-        c.ratio, c.t_cap = self._ratio, tp.cables.t_cap
+        c.ratio, c.t_cap, c.res, c.inv_res = self._ratio, tp.cables.t_cap, self._res, self._inv_res
 
         def put(name, values):
             arr = getattr(c, name)
@@ -582,7 +582,6 @@ class PlantBatch:
         self.dt, self.period = p0.timestep, p0.period
         col = lambda values: np.array(values, dtype=float)[:, None]   # noqa: E731  (K, 1) for broadcasting
         self._fmax = col([p._fmax for p in plants])
-        self._res, self._inv_res = col([p._res for p in plants]), col([p._inv_res for p in plants])
         self._delay = np.array([p._delay for p in plants])
         self._delayed = np.flatnonzero(self._delay > 0.0)
         # ring buffer of commands: period q's at q % R, enough for every period a delay reaches back to
@@ -614,14 +613,14 @@ class PlantBatch:
         self.fatal = np.zeros(K, dtype=np.int32)
         self._encoders = np.zeros((K, m))
         self.active = np.ones(K, dtype=np.uint8)
-        self._advance = np.full(K, nsub, dtype=np.int64)
         self.errors: list = [None] * K
         for i, p in enumerate(plants):
             self._copy_outputs(i)
         ptrs = lambda values: (ctypes.c_void_p * K)(*values)   # noqa: E731
         self._c_args = (K, ptrs([ctypes.addressof(p._c) for p in plants]), ptrs([p.model._address for p in plants]),
                         ptrs([p.data._address for p in plants]), self.active.ctypes.data, nsub, m, n)
-        self._c_out = (self.frame_alpha.ctypes.data, self.out.ctypes.data, self.fatal.ctypes.data)
+        self._c_out = (self.frame_alpha.ctypes.data, self.k.ctypes.data, self.out.ctypes.data,
+                       self._encoders.ctypes.data, self.fatal.ctypes.data)
         self._c_forces, self._c_ctrl = self.forces.ctypes.data, self.ctrl.ctypes.data
         self._c_capture = self.capture.ctypes.data
         self._cam_lead = self._camera_lead()
@@ -634,14 +633,13 @@ class PlantBatch:
 
     def encoders(self) -> np.ndarray:
         """Motor angles theta (K, m) rad, quantised to each plant's encoder resolution (nearest count);
-        a buffer the next call overwrites."""
-        return _quantise(self.out[:, : self.m], self._inv_res, self._res, self._encoders)
+        a buffer the next step overwrites."""
+        return self._encoders
 
     def stop(self, i: int, error: BaseException) -> None:
         """Plant i steps no more; ``errors[i]`` says why."""
         self.errors[i] = error
         self.active[i] = 0
-        self._advance[i] = 0
         self.fatal[i] = 0
 
     def close(self) -> None:
@@ -683,7 +681,7 @@ class PlantBatch:
             f = np.where(ok[:, None], f, 0.0)
         np.minimum(np.maximum(f, 0.0, out=self.forces), self._fmax, out=self.forces)
         if self.step_checked():
-            for i in np.flatnonzero(self.fatal.astype(bool) & (self.active > 0)):
+            for i in np.flatnonzero(self.fatal * self.active):
                 self.stop(i, self.diverged(i))
                 stopped.append(int(i))
         return stopped
@@ -717,7 +715,6 @@ class PlantBatch:
                 raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
         else:
             fatal = self._step_python(per_substep, due is not None)
-        k0 += self._advance                      # self.k, in place
         if due is None:
             self._cam_lead -= nsub
         else:
@@ -781,6 +778,7 @@ class PlantBatch:
                 mujoco.mj_step1(m, d)
                 if rigid is not None:
                     plant._out_tension[:] = rigid
+                self.k[i] += self.nsub
                 self._copy_outputs(i)
                 self.fatal[i] = any(w.number for w in plant._fatal_warnings)
         finally:
@@ -788,7 +786,9 @@ class PlantBatch:
         return int(self.fatal[self.active > 0].sum())
 
     def _copy_outputs(self, i: int) -> None:
+        """Plant i's outputs (its struct's) into row i of ``out`` and its encoder reading (the C loop's own copy)."""
         p, o, c = self.plants[i], self.out[i], self._cols
+        _quantise(p._out_theta, p._inv_res, p._res, self._encoders[i])
         o[c["theta"]], o[c["alpha"]], o[c["alpha_dot"]] = p._out_theta, p._out_alpha, p._out_alpha_dot
         o[c["tension"]], o[c["elongation"]], o[c["loop_gap"]] = p._out_tension, p._out_elong, p._c.loop_gap
 

@@ -185,7 +185,7 @@ def build() -> ctypes.CDLL:
     step = ctypes.PyDLL(lib_path).neck_step_batch
     ptr = ctypes.c_void_p
     step.argtypes = [ctypes.c_int, ptr, ptr, ptr, ptr, ctypes.c_int, ctypes.c_int, ctypes.c_int,
-                     ptr, ctypes.c_int, ptr, ptr, ptr, ptr]
+                     ptr, ctypes.c_int, ptr, ptr, ptr, ptr, ptr, ptr]
     step.restype = ctypes.c_int
     lib.step_batch = step
     return lib

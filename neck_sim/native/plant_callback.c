@@ -38,8 +38,9 @@ typedef struct {
   int qA[NECK_MAXC], qD[NECK_MAXC], vA[NECK_MAXC], vD[NECK_MAXC], site1[NECK_MAXC], site2[NECK_MAXC];
   /* rigid cables: equality constraint id of each cable (its tension is that constraint's force) */
   int eq_rigid[NECK_MAXC];
-  /* parameters, SI units: ratio R/r_d (rad/m), t_cap (N), rest length and pretension offset (m) */
-  double ratio, t_cap;
+  /* parameters, SI units: ratio R/r_d (rad/m), t_cap (N), rest length and pretension offset (m);
+     encoder resolution (rad) and its inverse */
+  double ratio, t_cap, res, inv_res;
   double rest[NECK_MAXC], x_pre[NECK_MAXC];
   /* eq (54): k (N/m), lam (1/m), c_a (N s/m) */
   double k[NECK_MAXC], lam[NECK_MAXC], c_a[NECK_MAXC];
@@ -183,15 +184,17 @@ static void rigid_tensions(const neck_plant* p, const mjData* d, double* out) {
    Plant i (skipped when active[i] == 0) runs mj_step2, mj_step x (nsub - 1), mj_step1 with
    ctrl[0:ncable] set before each sub-step s to ctrl + (i nsub + s) ncable (ctrl_per_substep) or
    ctrl + i ncable; where capture[i nsub + s] != 0 (capture may be NULL) the joint angles after
-   sub-step s go to frame_alpha + (i nsub + s) njoint.  Then out + i nout receives
-   theta (ncable), alpha, alpha_dot (njoint), tension, elongation (ncable), loop_gap, and fatal[i]
-   is 1 if MuJoCo reported a singular inertia or a bad qpos / qvel / qacc since the last reset.
+   sub-step s go to frame_alpha + (i nsub + s) njoint.  Then substep[i] grows by nsub, out + i nout
+   receives theta (ncable), alpha, alpha_dot (njoint), tension, elongation (ncable), loop_gap,
+   encoders + i ncable the encoder reading of theta (nearest count of res, as Plant.encoders), and
+   fatal[i] is 1 if MuJoCo reported a singular inertia or a bad qpos / qvel / qacc since the last
+   reset.
    Returns how many active plants have fatal set, or -1 (nothing stepped) if a plant's sizes
    differ from ncable, njoint. */
 int neck_step_batch(int K, neck_plant* const* plants, const mjModel* const* models, mjData* const* datas,
                     const unsigned char* active, int nsub, int ncable, int njoint,
                     const double* ctrl, int ctrl_per_substep, const int* capture, double* frame_alpha,
-                    double* out, int* fatal) {
+                    long long* substep, double* out, double* encoders, int* fatal) {
   int nout = 3 * ncable + 2 * njoint + 1, nfatal = 0;
   for (int i = 0; i < K; i++) {
     if (plants[i]->ncable != ncable || plants[i]->njoint != njoint) return -1;
@@ -215,8 +218,10 @@ int neck_step_batch(int K, neck_plant* const* plants, const mjModel* const* mode
     mj_step1(m, d);
     if (p->rigid) for (int j = 0; j < ncable; j++) p->tension[j] = rigid[j];
     double* o = out + i * nout;
+    substep[i] += nsub;
     for (int j = 0; j < ncable; j++) {
       o[j] = p->theta[j];
+      encoders[i * ncable + j] = rint(p->theta[j] * p->inv_res) * p->res;
       o[ncable + 2 * njoint + j] = p->tension[j];
       o[2 * ncable + 2 * njoint + j] = p->elongation[j];
     }
