@@ -12,11 +12,16 @@ interleaved runs (CPU time is what one core spends, whatever else shares the mac
 * ``neck-sim simulate --trajectory identification --law 2 -o run.mcap`` as a fresh process
   (imports, numba cache load, plant build, 85 s simulated, log), its real-time factor from the
   process's CPU time (target >= 20x) and its cold start (imports + first control step);
-* lockstep batches of K = 1, 8, 64 runs (different seeds): cost per run and period.
+* lockstep batches of K = 1, 8, 64 runs (different seeds, every fourth with an actuation delay,
+  every fourth with a camera delay): cost per run and period, as a ratio to the same K runs made
+  one at a time and to bare ``mj_step``;
+* with ``--baseline-tree DIR`` (another checkout, e.g. ``/work/main``), the whole-process run of
+  that tree too, interleaved with this one's (before / after).
 
-    python benchmarks/bench_closed_loop.py [--repeat 3] [--skip-process] [--k 1 8 64]
+    python benchmarks/bench_closed_loop.py [--repeat 3] [--skip-process] [--k 1 8 64] [--baseline-tree DIR]
 
-The closed-loop timings run two 2.5 s moves with 1 s holds (8 s simulated, law 2).
+The closed-loop timings run two 2.5 s moves with 1 s holds (8 s simulated, law 2); the lockstep
+batches two 0.7 s moves with 0.3 s holds (2.6 s simulated per run).
 """
 
 from __future__ import annotations
@@ -76,15 +81,19 @@ def closed_loop_s(params, traj, log_dir: str | None):
     return lambda: run_closed_loop(plant, ctrl, traj, progress=False, log_path=path)
 
 
-def process_run(seed: int = 0) -> tuple[float, float, float]:
-    """(wall s, CPU s, simulated s) of `neck-sim simulate --trajectory identification --law 2 -o`."""
-    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+def process_run(seed: int = 0, tree: str = ROOT) -> tuple[float, float, float]:
+    """(wall s, CPU s, simulated s) of `neck-sim simulate --trajectory identification --law 2 -o` run
+    from checkout ``tree`` (default this one)."""
+    env = dict(os.environ, PYTHONPATH=tree + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    if tree != ROOT:       # its own caches: nothing written into that tree, no eviction of this tree's library
+        env["NECK_SIM_CACHE"] = os.path.join(tempfile.gettempdir(), "neck_sim_bench_baseline_cache")
+        env["NUMBA_CACHE_DIR"] = os.path.join(tempfile.gettempdir(), "neck_sim_bench_baseline_numba")
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         subprocess.run([sys.executable, "-m", "neck_sim.cli", "simulate", "--trajectory", "identification",
                         "--law", "2", "-o", os.path.join(tmp, "run.mcap"), "--no-progress", "--seed", str(seed)],
-                       check=True, env=env, stdout=subprocess.DEVNULL)
+                       check=True, env=env, stdout=subprocess.DEVNULL, cwd=tree)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -109,6 +118,7 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--k", type=int, nargs="+", default=[1, 8, 64], help="lockstep batch sizes")
     ap.add_argument("--skip-process", action="store_true", help="no whole-process run (85 s simulated)")
+    ap.add_argument("--baseline-tree", help="another checkout whose whole-process run is measured too (before)")
     args = ap.parse_args(argv)
     p = default_params(3)
     rate = p.control.rate_hz
@@ -142,23 +152,54 @@ def main(argv=None) -> None:
     share = (per["logged"] - per["loop"]) / per["logged"]
     print(f"MCAP writing: {100 * share:.1f} % of a logged closed-loop run (target <= 15 %)")
 
-    base = None
-    for K in args.k:
-        plants = [Plant(p, seed=s) for s in range(K)]
-        ctrls = [ComputedTorqueController(p, 2) for _ in range(K)]
-        t = best_of(lambda: run_lockstep(plants, ctrls, [traj] * K, progress=False), max(1, args.repeat // 2))
-        us = 1e6 * t / (K * periods)
-        base = us if base is None else base
-        row(f"lockstep K = {K}: per run and period", us, f"{us / base:.2f}x K = {args.k[0]}")
+    lockstep_batches(p, args.k, args.repeat, row)
 
     if not args.skip_process:
         cold = cold_start()
-        wall, cpu, sim = process_run()
+        trees = [("this tree", ROOT)] + ([("baseline " + args.baseline_tree, args.baseline_tree)]
+                                         if args.baseline_tree else [])
+        runs = {label: (np.inf, np.inf, 0.0) for label, _ in trees}
+        if args.baseline_tree:
+            process_run(tree=args.baseline_tree)      # warm-up: its compile caches filled
+        for _ in range(args.repeat if args.baseline_tree else 1):     # interleaved, least CPU of each
+            for label, tree in trees:
+                r = process_run(tree=tree)
+                runs[label] = min(runs[label], r, key=lambda x: x[1])
         print(f"cold start (imports, kernels from the numba cache, one control step): {cold:.2f} s CPU")
-        print(f"neck-sim simulate --trajectory identification --law 2 -o run.mcap: {sim:g} s simulated in "
-              f"{cpu:.2f} s CPU ({wall:.2f} s wall): {sim / cpu:.1f}x real time on one core (target >= 20x); "
-              f"the plant period alone would give {1e6 / per['plant'] * (1 / rate):.1f}x, bare mj_step "
+        for label, (wall, cpu, sim) in runs.items():
+            print(f"neck-sim simulate --trajectory identification --law 2 -o run.mcap ({label}): {sim:g} s simulated "
+                  f"in {cpu:.2f} s CPU ({wall:.2f} s wall): {sim / cpu:.1f}x real time on one core (target >= 20x)")
+        print(f"the plant period alone would give {1e6 / per['plant'] * (1 / rate):.1f}x, bare mj_step "
               f"{1e6 / per['bare'] * (1 / rate):.1f}x")
+
+
+def lockstep_batches(p, sizes, repeat: int, row) -> None:
+    """Cost per run and period of run_lockstep for each K in ``sizes`` (K different plants), against
+    the same K runs made one at a time (K = 1 each) in the same run, interleaved."""
+    from neck_sim import effects as E
+
+    traj = cycloidal_path(np.radians([[0.0, 0.0, 0.0], [30.0, -20.0, 25.0], [-15.0, 25.0, -20.0]]), 0.7, 0.3)
+    periods = int(round(traj.duration * p.control.rate_hz)) + 1
+    effects = [E.Effects(), E.Effects(actuation_delay=E.ActuationDelay(0.004)), E.Effects(),
+               E.Effects(camera_delay=E.CameraDelay(0.033))]
+
+    def runs(K, together: bool):
+        plants = [Plant(p, effects=effects[s % 4], seed=s) for s in range(K)]
+        ctrls = [ComputedTorqueController(p, 2) for _ in range(K)]
+        if together:
+            return lambda: run_lockstep(plants, ctrls, [traj] * K, progress=False)
+        return lambda: [run_lockstep([pl], [c], [traj], progress=False) for pl, c in zip(plants, ctrls)]
+    runs(1, True)()                              # warm-up
+    for K in sizes:
+        funs = {"together": runs(K, True), "alone": runs(K, False)}
+        best = {name: np.inf for name in funs}
+        for _ in range(repeat):
+            for name, fun in funs.items():
+                best[name] = min(best[name], best_of(fun, 1))
+        us = {name: 1e6 * t / (K * periods) for name, t in best.items()}
+        row(f"lockstep K = {K}: per run and period", us["together"],
+            f"{us['together'] / us['alone']:.2f}x the same {K} run{'s' if K > 1 else ''} one at a time "
+            f"({us['alone']:.1f} us)")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,8 @@ controller-like force (N + 1 cables, 25 +- 10 N):
   native callback, sensors), the cost of one control period; target ratio < 1.5;
 * the same with the pure-Python callback backend;
 * a breakdown (where the time goes): physics with the callback, Python overhead of ``step``,
-  sensors;
+  sensors; the period's physics as the one C call of ``PlantBatch`` (``neck_step_batch``) against
+  the same MuJoCo calls made from Python; the native callback's own cost;
 * the real-time factor (simulated s per wall-clock s) at the default timestep, the largest that
   keeps the item-5 dynamics check true (``--check-timesteps`` re-runs its 10 s hold at 1e-3 and
   5e-4 s to show it).
@@ -87,6 +88,42 @@ def physics_loop(plant, f):
     return run
 
 
+def native_loop(plant, f):
+    """Only the C call of the plant's period (``neck_step_batch``, K = 1, no camera or delay schedule)."""
+    solo = plant._solo
+    step = P._DISPATCH.lib.step_batch
+
+    def run():
+        plant.reset(np.zeros(plant.n_joints))
+        prev = P._DISPATCH.enter()
+        try:
+            for fk in f:
+                solo.forces[0] = fk
+                step(*solo._c_args, solo._c_forces, 0, None, *solo._c_out)
+        finally:
+            P._DISPATCH.leave(prev)
+    return run
+
+
+def callback_us(plant, calls: int = 20000) -> tuple[float, float]:
+    """(us per call of the native callback on the plant's current state, calls per control period):
+    ctypes calls of ``neck_control`` less ctypes calls of a trivial function of the same library."""
+    lib = P._DISPATCH.lib
+    m, d = plant.model._address, plant.data._address
+    before = plant._c.calls
+    plant.step(np.full(plant._n1, 20.0))
+    per_period = plant._c.calls - before
+
+    def control():
+        for _ in range(calls):
+            lib.neck_control(m, d)
+
+    def trivial():
+        for _ in range(calls):
+            lib.neck_registered()
+    return 1e6 * (best_of(control, 5) - best_of(trivial, 5)) / calls, per_period
+
+
 def sensors_loop(plant, periods):
     enc, truth, cam = plant.encoders, plant.truth, plant.camera_frame
 
@@ -127,11 +164,14 @@ def main(argv=None) -> None:
 
     # Interleaved, best of each: a shared machine's load drifts, and drifts alike for all four.
     loops = [bare_loop(plant, f), plant_loop(plant, f), physics_loop(plant, f), sensors_loop(plant, K)]
-    best = [np.inf] * 4
+    native = plant.backend == "native"
+    if native:
+        loops.append(native_loop(plant, f))
+    best = [np.inf] * len(loops)
     for _ in range(args.repeat):
         for i, fun in enumerate(loops):
             best[i] = min(best[i], best_of(fun, 1))
-    bare, full, phys, sens = best
+    bare, full, phys, sens = best[:4]
     print(f"neck N = {p.n_joints}, timestep {plant.timestep:g} s, {plant.substeps} sub-steps per control period "
           f"({1e3 / rate:g} ms), backend {plant.backend}, {K} periods, best of {args.repeat}")
     print(f"{'':44}{'us/period':>10} {'ratio':>7}")
@@ -140,6 +180,14 @@ def main(argv=None) -> None:
     print(f"{'  physics + native callback (step2/step/step1)':44}{us(phys):10.1f} {phys / bare:7.2f}")
     print(f"{'  Python overhead of Plant.step':44}{us(full - phys - sens):10.1f} {(full - phys - sens) / bare:7.2f}")
     print(f"{'  sensors (encoders, truth, camera_frame)':44}{us(sens):10.1f} {sens / bare:7.2f}")
+    if native:
+        c_call = best[4]
+        print(f"{'  the period in C (neck_step_batch, K = 1)':44}{us(c_call):10.1f} {c_call / bare:7.2f}   "
+              f"the same steps called from Python: {phys / c_call:.2f}x")
+        cb, per_period = callback_us(plant)
+        cb_period = cb * per_period
+        print(f"{'  native callback (x calls per period)':44}{cb_period:10.1f} {cb_period / us(bare):7.2f}   "
+              f"{cb:.2f} us x {per_period}")
     print(f"real-time factor: {(K / rate) / full:.1f} simulated s per wall-clock s")
     if P.native_available():
         Kp = max(50, K // 10)

@@ -4,8 +4,8 @@
 data, reproductions); ``run_closed_loop`` is its single-run case.  Each control period k
 (t_k = k / rate), for K independent runs at once:
 
-    theta_k = plant.encoders() for each run;   one compiled controller step for all K runs
-    plant.step(forces) for each run;          frame = plant.camera_frame()
+    theta_k = the K plants' encoders;   one compiled controller step for all K runs;
+    one PlantBatch step for all K plants (one native call);   their camera frames, if any
 
 and everything is recorded -- the measured topics (motors, camera, reference, estimate) and the
 simulation truth -- to arrays and, if asked, to an MCAP log written in bulk from those arrays
@@ -34,6 +34,7 @@ import numpy as np
 from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, output_slices,
                                         reference_table, step_error)
 from controllers.trajectories import Trajectory
+from neck_sim.plant import Plant, PlantBatch, truth_columns
 from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "Metrics", "RunResult", "run_closed_loop", "run_lockstep", "compute_metrics"]
@@ -173,9 +174,10 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     ``plants``, ``controllers``, ``trajectories`` (and ``log_paths``, ``run_infos``, default None)
     are K-long sequences: each run has its own plant (seed, parameters, effects), controller (law,
     model, gains) and trajectory; all trajectories have the same number of control periods and
-    every controller the same N.  One compiled call advances the K controllers; the plants then
-    step one after another (each plant's physics runs through MuJoCo's process-wide callback).
-    Memory: about 8 (13 N + 7) K T bytes for T periods.
+    every controller the same N.  One compiled call advances the K controllers and one
+    :class:`neck_sim.plant.PlantBatch` call steps the K plants (objects of other types, e.g. a
+    wrapped plant, step alone through their ``step``); every run is recorded into (K, T, ...)
+    arrays.  Memory: about 8 (13 N + 10) K T bytes for T periods.
 
     Returns one entry per run: its :class:`RunResult`, or (``stop_on_error=False``) the
     RuntimeError that stopped it (controller failure, diverged plant) while the others go on.
@@ -225,61 +227,95 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     infos = [{**plant_run_info(plant), "trajectory": traj.name, "duration_s": traj.duration, "law": int(ctrl.law),
               "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
              for plant, ctrl, traj, info in zip(plants, controllers, trajectories, run_infos)]
-    recs = [{name: np.empty((steps,) + shape) for name, shape in (
-        ("t", ()), ("theta", (m,)), ("alpha", (n,)), ("alpha_dot", (n,)), ("tension", (m,)),
-        ("elongation", (m,)), ("loop_gap", ()))} for _ in range(K)]
+    truth_cols = truth_columns(n, m)
+    rec_t = np.empty((K, steps))
+    rec_theta = np.empty((K, steps, m))
+    rec_truth = np.empty((K, steps, truth_cols["loop_gap"].stop))     # rows of PlantBatch.out
     columns = output_slices(n, m)
     outs = np.zeros((K, steps, max(sl.stop for sl in columns.values())))   # rows of output_slices
+    forces = outs[:, :, columns["forces"]]
     theta = np.empty((K, m))
     cameras = [([], []) for _ in range(K)]
     errors: list = [None] * K
+    alive = np.ones(K, dtype=bool)
+    # Plants step together in one PlantBatch; anything else with the plant's interface (a wrapped
+    # plant, a stand-in) steps alone through its own step().
+    batched = [i for i, p in enumerate(plants) if type(p) is Plant]
+    alone = [i for i in range(K) if type(plants[i]) is not Plant]
+    rows = slice(None) if not alone else np.array(batched, dtype=np.intp)
+    batch = PlantBatch([plants[i] for i in batched]) if batched else None
+    start = None if batch is None else batch.k.copy()
+    position = {i: j for j, i in enumerate(batched)}         # run -> its row in the batch
     writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
-    forces = columns["forces"]
-    # per run: its index, plant, recording rows and commanded-force rows (views, bound once)
-    live = [(i, plants[i], recs[i]["t"], recs[i]["theta"], recs[i]["alpha"], recs[i]["alpha_dot"], recs[i]["tension"],
-             recs[i]["elongation"], recs[i]["loop_gap"], outs[i][:, forces], cameras[i]) for i in range(K)]
+
+    def fail(i: int, t: float, exc: Exception) -> None:
+        err = RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}")
+        if stop_on_error:
+            raise err from exc
+        err.__cause__ = exc
+        errors[i] = err
+        alive[i] = False
+        if compiled:
+            status[i] = status[i] or -1       # the controller stops with its plant
+        if i in position and batch.active[position[i]]:
+            batch.stop(position[i], err)      # the plant stops with its controller
+
+    def t_of(i: int, k: int) -> float:
+        """Time of period k of run i (s)."""
+        j = position.get(i)
+        return rec_t[i, k] if j is None else (start[j] + k * batch.nsub) * batch.dt
+
     try:
         desc = trajectories[0].name + (f" law {int(controllers[0].law)}" if K == 1 else f" x {K}")
         bar = tqdm(range(steps), desc=desc, unit="step", disable=not progress, mininterval=0.5)
         for k in bar:
-            for i, plant, r_t, r_theta, *_ in live:
-                r_t[k] = plant.time
-                r_theta[k] = theta[i] = plant.encoders()
+            if batch is not None:
+                theta[rows] = rec_theta[rows, k] = batch.encoders()
+                rec_truth[rows, k] = batch.out
+            for i in alone:
+                if alive[i]:
+                    plant = plants[i]
+                    rec_t[i, k] = plant.time
+                    rec_theta[i, k] = theta[i] = plant.encoders()
+                    truth = plant.truth()
+                    for name, sl in truth_cols.items():
+                        rec_truth[i, k, sl] = getattr(truth, name)
             if compiled:
                 advance(state, theta, k, tables, outs)
-            failed = False
-            for i, plant, r_t, _, r_alpha, r_alpha_dot, r_tension, r_elong, r_gap, f, camera in live:
-                truth = plant.truth()
-                r_alpha[k] = truth.alpha
-                r_alpha_dot[k] = truth.alpha_dot
-                r_tension[k] = truth.tension
-                r_elong[k] = truth.elongation
-                r_gap[k] = truth.loop_gap
-                try:
-                    if not compiled:
+                if np.count_nonzero(status):          # a quarter of status.any()'s call overhead
+                    for i in np.flatnonzero((status != 0) & alive):
+                        fail(i, t_of(i, k), step_error(int(status[i]), state.values[i, 0, :n],
+                                                       controllers[i].params.geometry.alpha_max))
+            else:
+                for i in np.flatnonzero(alive):
+                    try:
                         # a copy: theta's row is overwritten next period and a controller may keep it
                         _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
-                    elif status[i]:
-                        raise step_error(int(status[i]), state.values[i, 0, :n],
-                                         controllers[i].params.geometry.alpha_max)
-                    plant.step(f[k])
-                except (ValueError, RuntimeError) as exc:
-                    err = RuntimeError(f"closed loop stopped at t = {r_t[k]:.3f} s: {exc}")
-                    if stop_on_error:
-                        raise err from exc
-                    err.__cause__ = exc
-                    errors[i] = err
-                    if compiled:
-                        status[i] = status[i] or -1       # the controller stops with its plant
-                    failed = True
-                    continue
-                frame = plant.camera_frame()
-                if frame is not None:
-                    camera[0].append(frame[0])
-                    camera[1].append(frame[1])
-            if failed:
-                live = [run for run in live if errors[run[0]] is None]
+                    except (ValueError, RuntimeError) as exc:
+                        fail(i, t_of(i, k), exc)
+            if batch is not None:
+                for j in batch.step(forces[rows, k]):
+                    fail(batched[j], t_of(batched[j], k), batch.errors[j])
+                if batch._framed:
+                    for j, frame in enumerate(batch.frames):
+                        if frame is not None:
+                            cameras[batched[j]][0].append(frame[0])
+                            cameras[batched[j]][1].append(frame[1])
+            for i in alone:
+                if alive[i]:
+                    plant = plants[i]
+                    try:
+                        plant.step(forces[i, k])
+                    except (ValueError, RuntimeError) as exc:
+                        fail(i, rec_t[i, k], exc)
+                        continue
+                    frame = plant.camera_frame()
+                    if frame is not None:
+                        cameras[i][0].append(frame[0])
+                        cameras[i][1].append(frame[1])
         bar.close()
+        if batch is not None:
+            rec_t[rows] = (start[:, None] + batch.nsub * np.arange(steps)) * batch.dt
         results = []
         for i in range(K):
             if errors[i] is not None:
@@ -287,12 +323,18 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                     writers[i].abort()
                 results.append(errors[i])
                 continue
-            results.append(_result(recs[i], outs[i], refs[i], cameras[i], infos[i], writers[i], columns))
+            rec = {"t": rec_t[i], "theta": rec_theta[i],
+                   **{name: rec_truth[i, :, sl] for name, sl in truth_cols.items() if name != "theta"}}
+            rec["loop_gap"] = rec["loop_gap"][:, 0]
+            results.append(_result(rec, outs[i], refs[i], cameras[i], infos[i], writers[i], columns))
     except BaseException:
         for w in writers:
             if w is not None:
                 w.abort()
         raise
+    finally:
+        if batch is not None:
+            batch.close()
     return results
 
 

@@ -30,9 +30,13 @@ file ``neck_sim/native/plant_callback.c``, compiled at first use by :mod:`neck_s
 cache (``$NECK_SIM_CACHE`` or ``~/.cache/neck_sim``); when no compiler is available a pure-Python
 callback with the same physics takes over (``set_backend``), 6-8x slower per control period.
 
-Stepping: :meth:`Plant.step` runs one control period (1/``control.rate_hz``) of physics
-sub-steps as ``mj_step2`` + ``mj_step`` x (n-1) + ``mj_step1``, so that after every period the
-position/velocity stages (tendon lengths, loop gaps, tensions) describe the current state.
+Stepping: a control period (1/``control.rate_hz``) is ``mj_step2`` + ``mj_step`` x (n-1) +
+``mj_step1``, so that after every period the position/velocity stages (tendon lengths, loop gaps,
+tensions) describe the current state; ``ctrl`` is set before each sub-step to the command then in
+force (actuation delay) and the joint angles are read where a camera frame is due.
+:class:`PlantBatch` runs such periods for K plants at once, with the native callback in one C
+call (``neck_step_batch``, which calls MuJoCo's ``mj_step*`` from C); :meth:`Plant.step` is its
+K = 1 case, so there is one stepping path.
 
 Rigid cables (the paper's rigid cable model, eq 25/32 with x_c = 0): ``Plant(...,
 rigid_cables=True)`` holds each cable tendon at its rest length with an equality constraint
@@ -61,8 +65,8 @@ from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["Plant", "Truth", "PlantDivergedError", "set_backend", "get_backend", "native_available",
-           "NativeBuildError", "MAX_CABLES"]
+__all__ = ["Plant", "PlantBatch", "truth_columns", "Truth", "PlantDivergedError", "set_backend", "get_backend",
+           "native_available", "NativeBuildError", "MAX_CABLES"]
 
 
 class Truth(NamedTuple):
@@ -323,7 +327,7 @@ class Plant:
         ix = self._ix
         c = PlantStruct()
         c.ncable, c.rigid, c.njoint = n1, int(self.rigid_cables), tp.n_joints
-        c.ratio, c.t_cap = self._ratio, tp.cables.t_cap
+        c.ratio, c.t_cap, c.res, c.inv_res = self._ratio, tp.cables.t_cap, self._res, self._inv_res
 
         def put(name, values):
             arr = getattr(c, name)
@@ -339,6 +343,8 @@ class Plant:
             for i, v in enumerate(vals):
                 arr[i] = int(v)
         put("act_drive", ix.drive_actuator)
+        if self.rigid_cables:
+            put("eq_rigid", ix.rigid_equality)
         put("act_tension", ix.tension_actuator)
         put("rest", self._rest)
         put("x_pre", self._x_pre)
@@ -406,7 +412,15 @@ class Plant:
 
     @property
     def time(self) -> float:
+        """s since the last reset (the state a PlantBatch holds while it is open)."""
         return self._k * self.timestep
+
+    @property
+    def _k(self) -> int:
+        """Physics sub-steps since the last reset."""
+        if self._batch is None:
+            return int(self._solo.k[0])
+        return int(self._batch.k[self._batch.plants.index(self)])
 
     @property
     def backend(self) -> str:
@@ -433,13 +447,9 @@ class Plant:
         d.qpos[ix.qpos_motor] = motor_angles_rigid(a0, self.params) / self._ratio
         for e in self.effects.active():
             e.setup_mujoco(m, d, ix)
-        self._k = 0
         self._rng = np.random.default_rng(self.seed)
-        self._frame = None
-        self._frame_index = 1                    # camera frame k is due at k / camera_rate_hz
-        self._next_cam = self._camera_step(1)
-        self._commands: dict[int, np.ndarray] = {}
-        self._rigid_tension = np.zeros(self.params.n_cables)
+        self._batch = None
+        self._solo = PlantBatch([self], fresh=True)       # this plant's stepping state
         previous = _DISPATCH.enter()
         try:
             mujoco.mj_step1(m, d)
@@ -468,94 +478,16 @@ class Plant:
 
     def step(self, forces) -> None:
         """Apply commanded cable forces (m,) N (clipped to [0, f_max]) for one control period."""
-        f = self._check_forces(forces)
-        previous = _DISPATCH.enter()
-        try:
-            m, d = self.model, self.data
-            n = self.substeps
-            k0 = self._k
-            self._frame = None
-            if self._delay == 0.0 and self._next_cam > k0 + n:
-                d.ctrl[: self._n1] = f                   # drive actuators come first
-                mujoco.mj_step2(m, d)
-                if n > 1:
-                    mujoco.mj_step(m, d, n - 1)
-            else:
-                self._step_segments(np.array(f), k0, n)
-            if self.rigid_cables:
-                self._rigid_tension = self._constraint_tensions()
-            self._k = k0 + n
-            mujoco.mj_step1(m, d)
-        finally:
-            _DISPATCH.leave(previous)
-        if any(w.number for w in self._fatal_warnings):
-            raise PlantDivergedError(
-                f"plant: the simulation diverged during the control period ending at t = {self.time:.4f} s "
-                f"(MuJoCo reported a singular inertia or a NaN/huge state or acceleration); the commanded "
-                f"forces {np.array2string(np.asarray(f), precision=1)} N or the parameters drive the neck out of its "
-                f"valid range (|alpha| < {self.params.geometry.alpha_max:.3g} rad). Call reset() to go on."
-                + (f" MuJoCo said: {_last_mujoco_warning}" if _last_mujoco_warning else ""))
-
-    def _step_segments(self, f: np.ndarray, k0: int, n: int) -> None:
-        """A control period cut where a camera frame is taken or the delayed force changes."""
-        m, d = self.model, self.data
-        ctrl = d.ctrl
-        breaks: dict[int, list] = {}
-        while self._next_cam <= k0 + n:
-            breaks.setdefault(max(self._next_cam - k0, 1), []).append(None)
-            self._frame_index += 1
-            self._next_cam = self._camera_step(self._frame_index)
-        if self._delay > 0.0:
-            self._commands[k0 // n] = f
-            switches = self._delayed_commands(k0, n)
-            ctrl[: self._n1] = switches[0][1]
-            for s, cmd in switches[1:]:
-                breaks.setdefault(s, []).append(cmd)
-        else:
-            ctrl[: self._n1] = f
-        mujoco.mj_step2(m, d)
-        done = 1
-        for s in sorted(breaks):
-            if s > done:
-                mujoco.mj_step(m, d, s - done)
-                done = s
-            for ev in breaks[s]:
-                if ev is None:
-                    self._take_frame((k0 + s) * self.timestep + self._camera_delay)
-                else:
-                    ctrl[: self._n1] = ev
-        if n > done:
-            mujoco.mj_step(m, d, n - done)
+        if self._batch is not None:
+            raise RuntimeError("plant: it is stepping in an open PlantBatch; step the batch (or close it) instead")
+        solo = self._solo
+        solo.forces[0] = self._check_forces(forces)
+        if solo.step_checked():
+            raise solo.diverged(0)
 
     def _camera_step(self, k: int) -> int:
         """Sub-step index at whose end camera frame k (due at k / camera_rate_hz) is taken."""
         return math.ceil((k / self.params.sensors.camera_rate_hz - self._camera_delay) / self.timestep - 1e-6)
-
-    def _delayed_commands(self, k0: int, n: int) -> list[tuple[int, np.ndarray]]:
-        """(sub-step offset, command) pairs in force during this period, the first at offset 0.
-
-        The command of period p is issued at p T and acts from p T + delay; before the first one
-        takes effect the delay line holds the first command.
-        """
-        T, dt, D = self.period, self.timestep, self._delay
-        current = k0 // n
-        out = []
-        last = None
-        for s in range(n):
-            p = min(current, max(0, int(math.floor(((k0 + s) * dt - D) / T + 1e-9))))
-            if p != last:
-                out.append((s, self._commands[p]))
-                last = p
-        oldest = current - int(math.ceil(D / T)) - 1
-        for p in [p for p in self._commands if p < oldest]:
-            del self._commands[p]
-        return out
-
-    def _take_frame(self, t: float) -> None:
-        ix, d = self._ix, self.data
-        alpha = d.qpos[ix.qpos_A] + d.qpos[ix.qpos_D]
-        noise = self._rng.normal(0.0, self.params.sensors.camera_noise, alpha.shape)
-        self._frame = (t, alpha + noise)
 
     def _constraint_tensions(self) -> np.ndarray:
         d, ix = self.data, self._ix
@@ -570,20 +502,302 @@ class Plant:
 
     def encoders(self) -> np.ndarray:
         """Motor angles theta (m,) rad, quantised to the encoder resolution (nearest count)."""
-        return np.rint(self._out_theta * self._inv_res) * self._res
+        return _quantise(self._out_theta, self._inv_res, self._res, np.empty(self._n1))
 
     def camera_frame(self):
         """(t, alpha (N,)) of the camera frame taken during the last step (30 Hz, Gaussian noise
         of ``sensors.camera_noise`` per joint, seeded), or None."""
-        return self._frame
+        return self._solo.frames[0]
 
     def truth(self) -> Truth:
         """Simulation truth at the current instant (computed by the callback after each period)."""
-        c = self._c
-        tension = self._rigid_tension.copy() if self.rigid_cables else self._out_tension.copy()
         return Truth(self._out_alpha.copy(), self._out_alpha_dot.copy(), self._out_theta.copy(),
-                     self._out_theta_dot.copy(), tension, self._out_elong.copy(), c.loop_gap)
+                     self._out_theta_dot.copy(), self._out_tension.copy(), self._out_elong.copy(), self._c.loop_gap)
 
     def __repr__(self) -> str:
         return (f"Plant(n_joints={self.n_joints}, effects={self.effects.names()}, timestep={self.timestep}, "
                 f"rigid_cables={self.rigid_cables}, backend={self.backend!r})")
+
+
+# ----------------------------------------------------------------------------------------- batch
+
+def _quantise(theta: np.ndarray, inv_res, res, out: np.ndarray) -> np.ndarray:
+    """Encoder reading of motor angles theta (rad): the nearest count of resolution ``res`` (rad), into ``out``."""
+    np.multiply(theta, inv_res, out=out)
+    return np.multiply(np.rint(out, out=out), res, out=out)
+
+
+def truth_columns(n: int, m: int) -> dict[str, slice]:
+    """Columns of :attr:`PlantBatch.out` (width 3m + 2n + 1) for N = n joints and m cables; the C
+    function ``neck_step_batch`` writes the same layout."""
+    widths = (("theta", m), ("alpha", n), ("alpha_dot", n), ("tension", m), ("elongation", m), ("loop_gap", 1))
+    out, start = {}, 0
+    for name, width in widths:
+        out[name] = slice(start, start + width)
+        start += width
+    return out
+
+
+class PlantBatch:
+    """K plants advanced together one control period at a time: the plant's one stepping path
+    (:meth:`Plant.step` is the K = 1 case, on the plant's own batch).
+
+    ``PlantBatch(plants)`` takes over the plants' stepping state (sub-step counter, camera
+    schedule, actuation-delay line) until :meth:`close` (or the end of a ``with`` block) hands it
+    back; meanwhile the plants cannot step alone.  The plants are distinct :class:`Plant` objects
+    with the same N, m, timestep and control period.
+
+    ``step(forces)`` runs one period, forces (K, m) N: each row is clipped to [0, f_max] (a row
+    with NaN or infinity stops that plant with ValueError), the delayed commands in force at each
+    sub-step and the camera frames due are worked out for all K, and each plant runs
+    ``mj_step2`` + ``mj_step`` x (n_sub - 1) + ``mj_step1`` with ``ctrl`` set per sub-step and its
+    joint angles copied where a frame is due: for all K in one C call (native backend,
+    ``neck_step_batch``) or in Python (Python backend).  Then
+
+    * ``out`` (K, 3m + 2N + 1): theta (m,) rad, alpha, alpha_dot (N,), tension (m,) N, elongation
+      (m,) m, loop_gap m of each plant (its :meth:`Plant.truth`); ``encoders()`` (K, m) rad;
+    * ``frames[i]``: the last camera frame (t, alpha (N,)) of the period, or None;
+    * a plant whose simulation diverged is stopped, its PlantDivergedError in ``errors[i]``.
+    """
+
+    def __init__(self, plants, *, fresh: bool = False):
+        plants = list(plants)
+        if not plants or not all(isinstance(p, Plant) for p in plants):
+            raise ValueError("PlantBatch: expected one or more neck_sim.plant.Plant objects")
+        if len({id(p) for p in plants}) != len(plants):
+            raise ValueError("PlantBatch: the same plant twice (each run needs its own plant)")
+        p0 = plants[0]
+        for i, p in enumerate(plants):
+            if (p.substeps, p.timestep, p.n_joints, p._n1) != (p0.substeps, p0.timestep, p0.n_joints, p0._n1):
+                raise ValueError(f"PlantBatch: plant {i} has (sub-steps, timestep, N, m) = "
+                                 f"{(p.substeps, p.timestep, p.n_joints, p._n1)}, plant 0 "
+                                 f"{(p0.substeps, p0.timestep, p0.n_joints, p0._n1)}")
+            if not fresh and p._batch is not None:
+                raise ValueError(f"PlantBatch: plant {i} is already in an open batch")
+        K, n, m, nsub = len(plants), p0.n_joints, p0._n1, p0.substeps
+        # a plant's own batch refers to it weakly: no reference cycle, so a dropped plant leaves the
+        # C registry at once (not at the next cyclic garbage collection)
+        self.plants = [weakref.proxy(p) for p in plants] if fresh else plants
+        self.K, self.n, self.m, self.nsub = K, n, m, nsub
+        self.dt, self.period = p0.timestep, p0.period
+        col = lambda values: np.array(values, dtype=float)[:, None]   # noqa: E731  (K, 1) for broadcasting
+        self._fmax = col([p._fmax for p in plants])
+        self._delay = np.array([p._delay for p in plants])
+        self._delayed = np.flatnonzero(self._delay > 0.0)
+        # ring buffer of commands: period q's at q % R, enough for every period a delay reaches back to
+        self._R = np.array([int(math.ceil(d / self.period)) + 2 if d > 0 else 1 for d in self._delay])
+        self.hist = np.zeros((K, int(self._R.max()), m))
+        self._rows = np.arange(K)
+        if fresh:
+            self.k = np.zeros(K, dtype=np.int64)
+            self.frame_index = np.ones(K, dtype=np.int64)     # camera frame j is due at j / camera_rate_hz
+            self.next_cam = np.array([p._camera_step(1) for p in plants], dtype=np.int64)
+            self.frames: list = [None] * K
+        else:
+            solos = [p._solo for p in plants]
+            self.k = np.array([s.k[0] for s in solos], dtype=np.int64)
+            self.frame_index = np.array([s.frame_index[0] for s in solos], dtype=np.int64)
+            self.next_cam = np.array([s.next_cam[0] for s in solos], dtype=np.int64)
+            self.frames = [s.frames[0] for s in solos]
+            for i, s in enumerate(solos):
+                self.hist[i, : self._R[i]] = s.hist[0]
+            for p in plants:
+                p._batch = self
+        self._framed = any(f is not None for f in self.frames)
+        self.forces = np.zeros((K, m))
+        self.ctrl = np.zeros((K, nsub, m))
+        self.capture = np.zeros((K, nsub), dtype=np.int32)
+        self.frame_alpha = np.zeros((K, nsub, n))
+        self._cols = truth_columns(n, m)
+        self.out = np.zeros((K, 3 * m + 2 * n + 1))
+        self.fatal = np.zeros(K, dtype=np.int32)
+        self._encoders = np.zeros((K, m))
+        self.active = np.ones(K, dtype=np.uint8)
+        self.errors: list = [None] * K
+        for i, p in enumerate(plants):
+            self._copy_outputs(i)
+        ptrs = lambda values: (ctypes.c_void_p * K)(*values)   # noqa: E731
+        self._c_args = (K, ptrs([ctypes.addressof(p._c) for p in plants]), ptrs([p.model._address for p in plants]),
+                        ptrs([p.data._address for p in plants]), self.active.ctypes.data, nsub, m, n)
+        self._c_out = (self.frame_alpha.ctypes.data, self.k.ctypes.data, self.out.ctypes.data,
+                       self._encoders.ctypes.data, self.fatal.ctypes.data)
+        self._c_forces, self._c_ctrl = self.forces.ctypes.data, self.ctrl.ctypes.data
+        self._c_capture = self.capture.ctypes.data
+        self._cam_lead = self._camera_lead()
+
+    # -- state
+    @property
+    def time(self) -> np.ndarray:
+        """(K,) s since each plant's reset."""
+        return self.k * self.dt
+
+    def encoders(self) -> np.ndarray:
+        """Motor angles theta (K, m) rad, quantised to each plant's encoder resolution (nearest count);
+        a buffer the next step overwrites."""
+        return self._encoders
+
+    def stop(self, i: int, error: BaseException) -> None:
+        """Plant i steps no more; ``errors[i]`` says why."""
+        self.errors[i] = error
+        self.active[i] = 0
+        self.fatal[i] = 0
+
+    def close(self) -> None:
+        """Hand the stepping state back to the plants (they can step alone again)."""
+        for i, p in enumerate(self.plants):
+            if p._batch is not self:
+                continue
+            solo = p._solo
+            solo.k[0], solo.frame_index[0], solo.next_cam[0] = self.k[i], self.frame_index[i], self.next_cam[i]
+            solo.hist[0] = self.hist[i, : self._R[i]]
+            solo.frames[0] = self.frames[i]
+            solo._framed = True
+            solo._cam_lead = solo._camera_lead()
+            p._batch = None
+
+    def __enter__(self) -> "PlantBatch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- stepping
+    def step(self, forces) -> list:
+        """One control period for the active plants (forces (K, m) N); returns the indices of the
+        plants stopped in it (bad forces, diverged simulation), whose errors are in ``errors``."""
+        try:
+            f = forces if type(forces) is np.ndarray and forces.dtype == np.float64 else np.asarray(forces, dtype=float)
+        except (TypeError, ValueError):
+            f = None
+        if f is None or f.shape != (self.K, self.m):
+            raise ValueError(f"forces: expected shape ({self.K}, {self.m}) (one row of cable forces per plant), "
+                             f"got {np.shape(forces)}")
+        stopped = []
+        if not math.isfinite(f.sum()):              # one reduction; the rows only when something is off
+            ok = np.isfinite(f).all(axis=1)
+            for i in np.flatnonzero(~ok & (self.active > 0)):
+                self.stop(i, ValueError(f"forces: contains NaN or infinity: {f[i].tolist()}"))
+                stopped.append(int(i))
+            f = np.where(ok[:, None], f, 0.0)
+        np.minimum(np.maximum(f, 0.0, out=self.forces), self._fmax, out=self.forces)
+        if self.step_checked():
+            for i in np.flatnonzero(self.fatal * self.active):
+                self.stop(i, self.diverged(i))
+                stopped.append(int(i))
+        return stopped
+
+    def step_checked(self) -> int:
+        """One control period with ``self.forces`` (K, m) already clipped; returns how many plants
+        have ``fatal`` set (their simulation diverged)."""
+        nsub, k0 = self.nsub, self.k
+        per_substep = self._delayed.size > 0
+        if per_substep:
+            cur = k0 // nsub
+            self.hist[self._rows, cur % self._R] = self.forces
+            self._delayed_controls(k0, cur)
+        if self._framed:
+            self.frames = [None] * self.K
+            self._framed = False
+        due = None
+        if self._cam_lead <= nsub:               # some plant may take a camera frame in this period
+            due = np.flatnonzero((self.next_cam <= k0 + nsub) & (self.active > 0))
+            start = k0.copy()
+            self._schedule_frames(due, start)
+        if _DISPATCH.backend == "native":
+            previous = _DISPATCH.enter()
+            try:
+                fatal = _DISPATCH.lib.step_batch(*self._c_args, self._c_ctrl if per_substep else self._c_forces,
+                                                 int(per_substep), self._c_capture if due is not None else None,
+                                                 *self._c_out)
+            finally:
+                _DISPATCH.leave(previous)
+            if fatal < 0:
+                raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
+        else:
+            fatal = self._step_python(per_substep, due is not None)
+        if due is None:
+            self._cam_lead -= nsub
+        else:
+            self._take_frames(due, start)
+            self._cam_lead = self._camera_lead()
+        return fatal
+
+    def _camera_lead(self) -> int:
+        """Sub-steps until the first active plant's next camera frame."""
+        lead = (self.next_cam - self.k)[self.active > 0]
+        return int(lead.min()) if lead.size else 1 << 62
+
+    def _delayed_controls(self, k0: np.ndarray, cur: np.ndarray) -> None:
+        """ctrl (K, n_sub, m): the command in force at each sub-step.  The command of period p is
+        issued at p T and acts from p T + delay; before the first one takes effect the delay line
+        holds the first command."""
+        self.ctrl[:] = self.forces[:, None, :]
+        dl = self._delayed
+        ks = k0[dl, None] + np.arange(self.nsub)
+        p = np.floor((ks * self.dt - self._delay[dl, None]) / self.period + 1e-9).astype(np.int64)
+        p = np.minimum(cur[dl, None], np.maximum(0, p))
+        self.ctrl[dl] = self.hist[dl[:, None], p % self._R[dl, None]]
+
+    def _schedule_frames(self, due: np.ndarray, k0: np.ndarray) -> None:
+        """capture (K, n_sub): frames due at the end of each sub-step (a frame already late is taken
+        at the end of the first one); advances the camera schedule of the plants in ``due``."""
+        self.capture[:] = 0
+        for i in due:
+            plant, start = self.plants[i], int(k0[i])
+            while self.next_cam[i] <= start + self.nsub:
+                self.capture[i, max(int(self.next_cam[i]) - start, 1) - 1] += 1
+                self.frame_index[i] += 1
+                self.next_cam[i] = plant._camera_step(int(self.frame_index[i]))
+
+    def _take_frames(self, due: np.ndarray, start: np.ndarray) -> None:
+        """Camera frames of this period, each with its own draw of the plant's seeded noise."""
+        for i in due:
+            plant = self.plants[i]
+            frame = None
+            for s in np.flatnonzero(self.capture[i]):
+                t = (int(start[i]) + int(s) + 1) * self.dt + plant._camera_delay
+                alpha = self.frame_alpha[i, s]
+                for _ in range(int(self.capture[i, s])):
+                    frame = (t, alpha + plant._rng.normal(0.0, plant.params.sensors.camera_noise, alpha.shape))
+            self.frames[i] = frame
+        self._framed = True
+
+    def _step_python(self, per_substep: bool, capture: bool) -> int:
+        """The C loop of ``neck_step_batch`` with the Python callback."""
+        previous = _DISPATCH.enter()
+        try:
+            for i in np.flatnonzero(self.active):
+                plant = self.plants[i]
+                m, d = plant.model, plant.data
+                for s in range(self.nsub):
+                    d.ctrl[: self.m] = self.ctrl[i, s] if per_substep else self.forces[i]
+                    (mujoco.mj_step2 if s == 0 else mujoco.mj_step)(m, d)
+                    if capture and self.capture[i, s]:
+                        self.frame_alpha[i, s] = d.qpos[plant._ix.qpos_A] + d.qpos[plant._ix.qpos_D]
+                rigid = plant._constraint_tensions() if plant.rigid_cables else None
+                mujoco.mj_step1(m, d)
+                if rigid is not None:
+                    plant._out_tension[:] = rigid
+                self.k[i] += self.nsub
+                self._copy_outputs(i)
+                self.fatal[i] = any(w.number for w in plant._fatal_warnings)
+        finally:
+            _DISPATCH.leave(previous)
+        return int(self.fatal[self.active > 0].sum())
+
+    def _copy_outputs(self, i: int) -> None:
+        """Plant i's outputs (its struct's) into row i of ``out`` and its encoder reading (the C loop's own copy)."""
+        p, o, c = self.plants[i], self.out[i], self._cols
+        _quantise(p._out_theta, p._inv_res, p._res, self._encoders[i])
+        o[c["theta"]], o[c["alpha"]], o[c["alpha_dot"]] = p._out_theta, p._out_alpha, p._out_alpha_dot
+        o[c["tension"]], o[c["elongation"]], o[c["loop_gap"]] = p._out_tension, p._out_elong, p._c.loop_gap
+
+    def diverged(self, i: int) -> PlantDivergedError:
+        """The error of plant i, whose simulation diverged in the period just run."""
+        p = self.plants[i]
+        return PlantDivergedError(
+            f"plant: the simulation diverged during the control period ending at t = {self.k[i] * self.dt:.4f} s "
+            f"(MuJoCo reported a singular inertia or a NaN/huge state or acceleration); the commanded "
+            f"forces {np.array2string(self.forces[i], precision=1)} N or the parameters drive the neck out of its "
+            f"valid range (|alpha| < {p.params.geometry.alpha_max:.3g} rad). Call reset() to go on."
+            + (f" MuJoCo said: {_last_mujoco_warning}" if _last_mujoco_warning else ""))

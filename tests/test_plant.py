@@ -238,7 +238,8 @@ def test_ctypes_mirror_has_the_c_layout(tmp_path):
                     'int main(void) {\n  printf("%zu\\n", sizeof(neck_plant));\n'
                     + "".join(f'  printf("%zu\\n", offsetof(neck_plant, {f}));\n' for f in fields) + "}\n")
     exe = tmp_path / "layout"
-    subprocess.run([native.compiler(), "-I", native.mujoco_include_dir(), str(prog), "-o", str(exe), "-lm"],
+    subprocess.run([native.compiler(), "-I", native.mujoco_include_dir(), str(prog), "-o", str(exe),
+                    *native.link_flags()],
                    check=True, capture_output=True)
     c_layout = [int(v) for v in subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()]
     py_layout = [ctypes.sizeof(native.PlantStruct)] + [getattr(native.PlantStruct, f).offset for f in fields]

@@ -25,7 +25,7 @@ import tempfile
 import mujoco
 
 __all__ = ["SOURCE_PATH", "source", "MAX_CABLES", "PlantStruct", "struct_fields", "build", "NativeBuildError",
-           "mujoco_include_dir", "compiler", "cache_dir"]
+           "mujoco_include_dir", "mujoco_library", "link_flags", "compiler", "cache_dir"]
 
 SOURCE_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "plant_callback.c")
 
@@ -115,11 +115,28 @@ def cache_dir() -> str:
     return d
 
 
+def mujoco_library() -> str:
+    """The MuJoCo shared library the Python package loads (``neck_step_batch`` calls its ``mj_step``)."""
+    names = sorted(f for f in os.listdir(os.path.dirname(mujoco.__file__))
+                   if f.startswith("libmujoco") and (".so" in f or f.endswith(".dylib")))
+    if not names:
+        raise NativeBuildError(f"no libmujoco shared library beside {mujoco.__file__}")
+    return os.path.join(os.path.dirname(mujoco.__file__), names[-1])
+
+
+def link_flags() -> list[str]:
+    """Compiler flags that link against :func:`mujoco_library` (by its file name, with an rpath: the
+    loader then reuses the copy the mujoco package has loaded, so there is one mjcb_control)."""
+    mjlib = mujoco_library()
+    folder = os.path.dirname(mjlib)
+    return ["-L", folder, f"-l:{os.path.basename(mjlib)}", f"-Wl,-rpath,{folder}", "-lm"]
+
+
 def _compile(lib_path: str, include: str, cache: str) -> None:
     cc = compiler()
     tmp = lib_path + f".tmp{os.getpid()}"
     try:
-        res = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-I", include, SOURCE_PATH, "-o", tmp, "-lm"],
+        res = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-I", include, SOURCE_PATH, "-o", tmp, *link_flags()],
                              capture_output=True, text=True, timeout=120)
         if res.returncode != 0:
             raise NativeBuildError(f"{cc} failed: {res.stderr.strip()[:2000]}")
@@ -163,4 +180,12 @@ def build() -> ctypes.CDLL:
     lib.neck_sense.restype = None
     lib.neck_control.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
     lib.neck_control.restype = None
+    # a PyDLL handle on the same library: neck_step_batch keeps the GIL, since MuJoCo may call the
+    # Python warning handler (neck_sim.plant routes MuJoCo's warnings to logging) from inside mj_step
+    step = ctypes.PyDLL(lib_path).neck_step_batch
+    ptr = ctypes.c_void_p
+    step.argtypes = [ctypes.c_int, ptr, ptr, ptr, ptr, ctypes.c_int, ctypes.c_int, ctypes.c_int,
+                     ptr, ctypes.c_int, ptr, ptr, ptr, ptr, ptr, ptr]
+    step.restype = ctypes.c_int
+    lib.step_batch = step
     return lib

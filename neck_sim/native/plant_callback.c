@@ -15,6 +15,10 @@
    simulation, and its biasprm describes only the last step.  Everything else the callback writes
    goes into the neck_plant struct (the outputs below).
 
+   Stepping: neck_step_batch runs one control period of K plants (mj_step2, mj_step x (nsub-1),
+   mj_step1, as neck_sim.plant.PlantBatch describes), linked against the MuJoCo library of the
+   Python package, so the sub-steps, camera captures and outputs cost no Python.
+
    Dispatch: callbacks are process-global; neck_control looks the model up among registered plants
    (neck_register) and returns at once for any other model.
 
@@ -22,8 +26,7 @@
    ctypes mirror is generated from its text (neck_sim.native.PlantStruct), so keep each member a
    plain `int` or `double`, scalar or [NECK_MAXC]. */
 #include <math.h>
-#include <mujoco/mjmodel.h>
-#include <mujoco/mjdata.h>
+#include <mujoco/mujoco.h>
 
 #define NECK_MAXC 32          /* cables per plant (the ctypes mirror reads this value too) */
 #define NECK_MAXPLANTS 256    /* live plants per process */
@@ -33,8 +36,11 @@ typedef struct {
   int ncable, rigid, njoint;
   int tendon[NECK_MAXC], dof[NECK_MAXC], qmotor[NECK_MAXC], act_drive[NECK_MAXC], act_tension[NECK_MAXC];
   int qA[NECK_MAXC], qD[NECK_MAXC], vA[NECK_MAXC], vD[NECK_MAXC], site1[NECK_MAXC], site2[NECK_MAXC];
-  /* parameters, SI units: ratio R/r_d (rad/m), t_cap (N), rest length and pretension offset (m) */
-  double ratio, t_cap;
+  /* rigid cables: equality constraint id of each cable (its tension is that constraint's force) */
+  int eq_rigid[NECK_MAXC];
+  /* parameters, SI units: ratio R/r_d (rad/m), t_cap (N), rest length and pretension offset (m);
+     encoder resolution (rad) and its inverse */
+  double ratio, t_cap, res, inv_res;
   double rest[NECK_MAXC], x_pre[NECK_MAXC];
   /* eq (54): k (N/m), lam (1/m), c_a (N s/m) */
   double k[NECK_MAXC], lam[NECK_MAXC], c_a[NECK_MAXC];
@@ -161,4 +167,69 @@ void neck_control(const mjModel* m, mjData* d) {
   }
   neck_sense(p, d);
   p->calls += 1;
+}
+
+/* Tensions of rigid cables (N): minus the force of each cable's equality constraint in the last
+   sub-step (0 if the constraint is not active); read before mj_step1 rebuilds the constraints. */
+static void rigid_tensions(const neck_plant* p, const mjData* d, double* out) {
+  for (int j = 0; j < p->ncable; j++) {
+    out[j] = 0;
+    for (int r = 0; r < d->nefc; r++) {
+      if (d->efc_type[r] == mjCNSTR_EQUALITY && d->efc_id[r] == p->eq_rigid[j]) { out[j] = -d->efc_force[r]; break; }
+    }
+  }
+}
+
+/* One control period of K plants (the registered callback must be installed as mjcb_control).
+   Plant i (skipped when active[i] == 0) runs mj_step2, mj_step x (nsub - 1), mj_step1 with
+   ctrl[0:ncable] set before each sub-step s to ctrl + (i nsub + s) ncable (ctrl_per_substep) or
+   ctrl + i ncable; where capture[i nsub + s] != 0 (capture may be NULL) the joint angles after
+   sub-step s go to frame_alpha + (i nsub + s) njoint.  Then substep[i] grows by nsub, out + i nout
+   receives theta (ncable), alpha, alpha_dot (njoint), tension, elongation (ncable), loop_gap,
+   encoders + i ncable the encoder reading of theta (nearest count of res, as Plant.encoders), and
+   fatal[i] is 1 if MuJoCo reported a singular inertia or a bad qpos / qvel / qacc since the last
+   reset.
+   Returns how many active plants have fatal set, or -1 (nothing stepped) if a plant's sizes
+   differ from ncable, njoint. */
+int neck_step_batch(int K, neck_plant* const* plants, const mjModel* const* models, mjData* const* datas,
+                    const unsigned char* active, int nsub, int ncable, int njoint,
+                    const double* ctrl, int ctrl_per_substep, const int* capture, double* frame_alpha,
+                    long long* substep, double* out, double* encoders, int* fatal) {
+  int nout = 3 * ncable + 2 * njoint + 1, nfatal = 0;
+  for (int i = 0; i < K; i++) {
+    if (plants[i]->ncable != ncable || plants[i]->njoint != njoint) return -1;
+  }
+  for (int i = 0; i < K; i++) {
+    if (!active[i]) continue;
+    neck_plant* p = plants[i];
+    const mjModel* m = models[i];
+    mjData* d = datas[i];
+    for (int s = 0; s < nsub; s++) {
+      const double* c = ctrl + (ctrl_per_substep ? (i * nsub + s) : i) * ncable;
+      for (int j = 0; j < ncable; j++) d->ctrl[p->act_drive[j]] = c[j];
+      if (s == 0) mj_step2(m, d); else mj_step(m, d);
+      if (capture && capture[i * nsub + s]) {
+        double* a = frame_alpha + (i * nsub + s) * njoint;
+        for (int q = 0; q < njoint; q++) a[q] = d->qpos[p->qA[q]] + d->qpos[p->qD[q]];
+      }
+    }
+    double rigid[NECK_MAXC];
+    if (p->rigid) rigid_tensions(p, d, rigid);
+    mj_step1(m, d);
+    if (p->rigid) for (int j = 0; j < ncable; j++) p->tension[j] = rigid[j];
+    double* o = out + i * nout;
+    substep[i] += nsub;
+    for (int j = 0; j < ncable; j++) {
+      o[j] = p->theta[j];
+      encoders[i * ncable + j] = rint(p->theta[j] * p->inv_res) * p->res;
+      o[ncable + 2 * njoint + j] = p->tension[j];
+      o[2 * ncable + 2 * njoint + j] = p->elongation[j];
+    }
+    for (int q = 0; q < njoint; q++) { o[ncable + q] = p->alpha[q]; o[ncable + njoint + q] = p->alpha_dot[q]; }
+    o[nout - 1] = p->loop_gap;
+    fatal[i] = d->warning[mjWARN_INERTIA].number > 0 || d->warning[mjWARN_BADQPOS].number > 0 ||
+               d->warning[mjWARN_BADQVEL].number > 0 || d->warning[mjWARN_BADQACC].number > 0;
+    nfatal += fatal[i];
+  }
+  return nfatal;
 }
