@@ -31,15 +31,26 @@ from typing import Any
 
 import numpy as np
 
-from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, output_slices,
-                                        reference_table, step_error)
+from numba import types
+from numba.extending import intrinsic
+
+from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, control_rows,
+                                        output_slices, reference_table, step_error)
 from controllers.trajectories import Trajectory
-from neck_sim.plant import Plant, PlantBatch, truth_columns
+from neck_sim.jit import kernel
+from neck_sim.plant import _DISPATCH, Plant, PlantBatch, truth_columns
 from neck_sim.replay import plant_run_info
 
-__all__ = ["SLACK_TENSION", "Metrics", "RunResult", "run_closed_loop", "run_lockstep", "compute_metrics"]
+__all__ = ["SLACK_TENSION", "FUSE_PERIODS", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
+           "compute_metrics"]
 
 SLACK_TENSION = 1e-6   # N: a cable carrying less than this is slack (the plant's tension is exactly 0 then)
+
+# Run the periods between events (camera frames, failures) in one compiled call (_run_periods) when
+# every controller is compiled and every plant in a native PlantBatch without actuation delay.
+# False: every period through the Python loop (the reference the compiled path must equal exactly).
+FUSE_PERIODS = True
+_MAX_FUSED = 500       # periods per compiled call at most: the progress bar moves at least every 1 s simulated
 
 
 @dataclass(frozen=True)
@@ -140,6 +151,66 @@ def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, cam
         saturated_samples=int(saturated.any(-1).sum()),
         samples=int(len(t)), camera_frames=int(len(camera_t)),
         duration=float(t[-1] - t[0]) if len(t) else 0.0)
+
+
+@intrinsic
+def _call_c(typingctx, address, args):
+    """``int f(args...)`` called at ``address`` (an integer): a C function pointer that numba's cache
+    can keep (an address baked into the code as a ctypes global would not survive the process).
+    ``args`` a tuple of int32 (C int) and int64 (pointers, passed as 64-bit integers)."""
+    if not (isinstance(address, types.Integer) and isinstance(args, types.BaseTuple)
+            and all(t in (types.int32, types.int64) for t in args.types)):
+        return None
+
+    def codegen(context, builder, signature, llargs):
+        from llvmlite import ir
+        values = [builder.extract_value(llargs[1], i) for i in range(len(args.types))]
+        fnty = ir.FunctionType(ir.IntType(32), [v.type for v in values])
+        return builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), values)
+
+    return types.int32(address, args), codegen
+
+
+@kernel
+def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth, values, flags, const, cables,
+                 linkage, geometry, cases, Z, tables, outs, status, alive, fcol, fmax, forces, step_fn, step_args):
+    """Periods k0 .. k1-1 of run_lockstep's loop for a PlantBatch and compiled controllers, and the
+    first half of period k1 if ``control_k1``.
+
+    Per period: record the encoders and the truth row, ``control_rows``, clip the forces to
+    [0, f_max] into ``forces`` as PlantBatch.step does, one ``neck_step_batch`` call (native
+    backend only: k1 = k0 otherwise).  Returns (k, stage, fatal): periods before k are done; period
+    k is untouched (stage 0, k = k1), recorded and controlled but not stepped (stage 1: period k1,
+    a controller failed or a force is not finite), or also stepped with ``fatal`` plants diverged
+    (stage 2).  The caller does the rest of period k.
+    """
+    K, m = enc.shape
+    for k in range(k0, k1 + control_k1):
+        for r in range(K):
+            for c in range(m):
+                theta[r, c] = enc[r, c]
+                rec_theta[r, k, c] = enc[r, c]
+            for c in range(plant_out.shape[1]):
+                rec_truth[r, k, c] = plant_out[r, c]
+        control_rows(theta, k, values, flags, const, cables, linkage, geometry, cases, Z, tables, outs, status)
+        for r in range(K):
+            if status[r] != 0 and alive[r]:
+                return k, 1, 0
+            for c in range(m):
+                if not np.isfinite(outs[r, k, fcol + c]):
+                    return k, 1, 0
+        if k == k1:
+            return k, 1, 0
+        for r in range(K):
+            for c in range(m):
+                # np.minimum(np.maximum(f, 0), f_max): on ties numpy returns the second operand (-0.0 -> 0.0)
+                f = outs[r, k, fcol + c]
+                f = f if f > 0.0 else 0.0
+                forces[r, c] = f if f < fmax[r, 0] else fmax[r, 0]
+        fatal = _call_c(step_fn, step_args)
+        if fatal != 0:
+            return k, 2, fatal
+    return k1, 0, 0
 
 
 def _log_writer(log_path, plant, run_info):
@@ -267,52 +338,84 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
 
     try:
         desc = trajectories[0].name + (f" law {int(controllers[0].law)}" if K == 1 else f" x {K}")
-        bar = tqdm(range(steps), desc=desc, unit="step", disable=not progress, mininterval=0.5)
-        for k in bar:
-            if batch is not None:
-                theta[rows] = rec_theta[rows, k] = batch.encoders()
-                rec_truth[rows, k] = batch.out
-            for i in alone:
-                if alive[i]:
-                    plant = plants[i]
-                    rec_t[i, k] = plant.time
-                    rec_theta[i, k] = theta[i] = plant.encoders()
-                    truth = plant.truth()
-                    for name, sl in truth_cols.items():
-                        rec_truth[i, k, sl] = getattr(truth, name)
-            if compiled:
-                advance(state, theta, k, tables, outs)
-                if np.count_nonzero(status):          # a quarter of status.any()'s call overhead
+        bar = tqdm(total=steps, desc=desc, unit="step", disable=not progress, mininterval=0.5)
+        fused = FUSE_PERIODS and compiled and not alone and batch is not None
+        if fused:
+            step_fn, step_args = batch.native_step()
+            kernel_args = (batch.encoders(), batch.out, theta, rec_theta, rec_truth, state.values, state.flags,
+                           state.const, state.cables, state.linkage, state.geometry, state.cases, state.Z, tables,
+                           outs, status, alive, columns["forces"].start, batch._fmax, batch.forces, step_fn, step_args)
+        k = 0
+        while k < steps:
+            # stage: how much of period k is done (0 nothing, 1 recorded and controlled, 2 also stepped)
+            stage = 0
+            if fused:
+                # the quiet periods in one call, and the next one (an event) recorded and controlled
+                quiet = min(batch.quiet_periods(), steps - k, _MAX_FUSED)
+                previous = _DISPATCH.enter() if quiet else None
+                try:
+                    k_end, stage, fatal = _run_periods(k, k + quiet, int(k + quiet < steps), *kernel_args)
+                finally:
+                    if quiet:
+                        _DISPATCH.leave(previous)
+                if fatal < 0:
+                    raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
+                batch.ran_periods(k_end - k + (stage == 2))
+                bar.update(k_end - k)
+                k = k_end
+                if stage == 0:
+                    continue
+            if stage == 0:
+                if batch is not None:
+                    theta[rows] = rec_theta[rows, k] = batch.encoders()
+                    rec_truth[rows, k] = batch.out
+                for i in alone:
+                    if alive[i]:
+                        plant = plants[i]
+                        rec_t[i, k] = plant.time
+                        rec_theta[i, k] = theta[i] = plant.encoders()
+                        truth = plant.truth()
+                        for name, sl in truth_cols.items():
+                            rec_truth[i, k, sl] = getattr(truth, name)
+                if compiled:
+                    advance(state, theta, k, tables, outs)
+                else:
+                    for i in np.flatnonzero(alive):
+                        try:
+                            # a copy: theta's row is overwritten next period and a controller may keep it
+                            _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
+                        except (ValueError, RuntimeError) as exc:
+                            fail(i, t_of(i, k), exc)
+            if stage == 2:                            # stepped by _run_periods: a plant diverged
+                for j in batch.stop_diverged():
+                    fail(batched[j], t_of(batched[j], k), batch.errors[j])
+            else:
+                if compiled and np.count_nonzero(status):     # a quarter of status.any()'s call overhead
                     for i in np.flatnonzero((status != 0) & alive):
                         fail(i, t_of(i, k), step_error(int(status[i]), state.values[i, 0, :n],
                                                        controllers[i].params.geometry.alpha_max))
-            else:
-                for i in np.flatnonzero(alive):
-                    try:
-                        # a copy: theta's row is overwritten next period and a controller may keep it
-                        _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
-                    except (ValueError, RuntimeError) as exc:
-                        fail(i, t_of(i, k), exc)
-            if batch is not None:
-                for j in batch.step(forces[rows, k]):
-                    fail(batched[j], t_of(batched[j], k), batch.errors[j])
-                if batch._framed:
-                    for j, frame in enumerate(batch.frames):
+                if batch is not None:
+                    for j in batch.step(forces[rows, k]):
+                        fail(batched[j], t_of(batched[j], k), batch.errors[j])
+                    if batch._framed:
+                        for j, frame in enumerate(batch.frames):
+                            if frame is not None:
+                                cameras[batched[j]][0].append(frame[0])
+                                cameras[batched[j]][1].append(frame[1])
+                for i in alone:
+                    if alive[i]:
+                        plant = plants[i]
+                        try:
+                            plant.step(forces[i, k])
+                        except (ValueError, RuntimeError) as exc:
+                            fail(i, rec_t[i, k], exc)
+                            continue
+                        frame = plant.camera_frame()
                         if frame is not None:
-                            cameras[batched[j]][0].append(frame[0])
-                            cameras[batched[j]][1].append(frame[1])
-            for i in alone:
-                if alive[i]:
-                    plant = plants[i]
-                    try:
-                        plant.step(forces[i, k])
-                    except (ValueError, RuntimeError) as exc:
-                        fail(i, rec_t[i, k], exc)
-                        continue
-                    frame = plant.camera_frame()
-                    if frame is not None:
-                        cameras[i][0].append(frame[0])
-                        cameras[i][1].append(frame[1])
+                            cameras[i][0].append(frame[0])
+                            cameras[i][1].append(frame[1])
+            k += 1
+            bar.update(1)
         bar.close()
         if batch is not None:
             rec_t[rows] = (start[:, None] + batch.nsub * np.arange(steps)) * batch.dt

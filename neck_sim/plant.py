@@ -681,10 +681,45 @@ class PlantBatch:
             f = np.where(ok[:, None], f, 0.0)
         np.minimum(np.maximum(f, 0.0, out=self.forces), self._fmax, out=self.forces)
         if self.step_checked():
-            for i in np.flatnonzero(self.fatal * self.active):
-                self.stop(i, self.diverged(i))
-                stopped.append(int(i))
+            stopped += self.stop_diverged()
         return stopped
+
+    def stop_diverged(self) -> list:
+        """Stop the active plants whose ``fatal`` is set (their simulation diverged in the period
+        just run); returns their indices."""
+        stopped = [int(i) for i in np.flatnonzero(self.fatal * self.active)]
+        for i in stopped:
+            self.stop(i, self.diverged(i))
+        return stopped
+
+    # -- periods stepped by a compiled caller (controllers.closed_loop runs the periods between
+    #    events in one numba kernel that calls neck_step_batch itself)
+    def quiet_periods(self) -> int:
+        """How many control periods from now need none of :meth:`step_checked`'s Python: native
+        backend, no actuation delay (its delay line is worked out in Python), no camera frame due.
+        The caller steps them through :meth:`native_step` and then calls :meth:`ran_periods`."""
+        if _DISPATCH.backend != "native" or self._delayed.size:
+            return 0
+        return max(0, (self._cam_lead - 1) // self.nsub)     # periods whose _cam_lead stays > nsub
+
+    def native_step(self) -> tuple:
+        """(address of ``neck_step_batch``, its arguments) for one undelayed period with the forces
+        of ``self.forces`` and no camera capture: pointers as integers, C ints as np.int32.  The
+        address is 0 off the native backend (where :meth:`quiet_periods` is 0)."""
+        K, plants, models, datas, active, nsub, m, n = self._c_args
+        i32, addr = np.int32, ctypes.addressof
+        args = (i32(K), addr(plants), addr(models), addr(datas), int(active), i32(nsub), i32(m), i32(n),
+                int(self._c_forces), i32(0), 0, *(int(a) for a in self._c_out))
+        native = _DISPATCH.backend == "native"
+        return ctypes.cast(_DISPATCH.lib.step_batch, ctypes.c_void_p).value if native else 0, args
+
+    def ran_periods(self, count: int) -> None:
+        """Bookkeeping of :meth:`step_checked` after ``count`` periods stepped through
+        :meth:`native_step` (at most :meth:`quiet_periods`)."""
+        if count > 0 and self._framed:
+            self.frames = [None] * self.K
+            self._framed = False
+        self._cam_lead -= count * self.nsub
 
     def step_checked(self) -> int:
         """One control period with ``self.forces`` (K, m) already clipped; returns how many plants
