@@ -38,7 +38,7 @@ from controllers.computed_torque import (ComputedTorqueController, ControllerSta
                                         output_slices, reference_table, step_error)
 from controllers.trajectories import Trajectory
 from neck_sim.jit import kernel
-from neck_sim.plant import _DISPATCH, Plant, PlantBatch, truth_columns
+from neck_sim.plant import _DISPATCH, Plant, PlantBatch, delayed_controls, truth_columns
 from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
@@ -47,7 +47,7 @@ __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "Metrics", "RunResult", "run_closed_
 SLACK_TENSION = 1e-6   # N: a cable carrying less than this is slack (the plant's tension is exactly 0 then)
 
 # Run the periods between events (camera frames, failures) in one compiled call (_run_periods) when
-# every controller is compiled and every plant in a native PlantBatch without actuation delay.
+# every controller is compiled and every plant in a native PlantBatch.
 # False: every period through the Python loop (the reference the compiled path must equal exactly).
 FUSE_PERIODS = True
 _MAX_FUSED = 500       # periods per compiled call at most: the progress bar moves at least every 1 s simulated
@@ -173,18 +173,23 @@ def _call_c(typingctx, address, args):
 
 @kernel
 def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth, values, flags, const, cables,
-                 linkage, geometry, cases, Z, tables, outs, status, alive, fcol, fmax, forces, step_fn, step_args):
+                 linkage, geometry, cases, Z, tables, outs, status, alive, fcol, fmax, forces, delay_line, step_fn,
+                 step_args):
     """Periods k0 .. k1-1 of run_lockstep's loop for a PlantBatch and compiled controllers, and the
     first half of period k1 if ``control_k1``.
 
     Per period: record the encoders and the truth row, ``control_rows``, clip the forces to
-    [0, f_max] into ``forces`` as PlantBatch.step does, one ``neck_step_batch`` call (native
-    backend only: k1 = k0 otherwise).  Returns (k, stage, fatal): periods before k are done; period
+    [0, f_max] into ``forces`` as PlantBatch.step does, the commands of each sub-step if some plant
+    has an actuation delay (``delay_line``: the arguments of ``delayed_controls`` but the forces),
+    one ``neck_step_batch`` call (native backend only: k1 = k0 otherwise).  Returns (k, stage, fatal): periods before k are done; period
     k is untouched (stage 0, k = k1), recorded and controlled but not stepped (stage 1: period k1,
     a controller failed or a force is not finite), or also stepped with ``fatal`` plants diverged
     (stage 2).  The caller does the rest of period k.
     """
     K, m = enc.shape
+    delayed = False
+    for r in range(K):
+        delayed = delayed or delay_line[3][r] > 0.0
     for k in range(k0, k1 + control_k1):
         for r in range(K):
             for c in range(m):
@@ -207,6 +212,8 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
                 f = outs[r, k, fcol + c]
                 f = f if f > 0.0 else 0.0
                 forces[r, c] = f if f < fmax[r, 0] else fmax[r, 0]
+        if delayed:
+            delayed_controls(delay_line[0], forces, *delay_line[1:])
         fatal = _call_c(step_fn, step_args)
         if fatal != 0:
             return k, 2, fatal
@@ -344,7 +351,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             step_fn, step_args = batch.native_step()
             kernel_args = (batch.encoders(), batch.out, theta, rec_theta, rec_truth, state.values, state.flags,
                            state.const, state.cables, state.linkage, state.geometry, state.cases, state.Z, tables,
-                           outs, status, alive, columns["forces"].start, batch._fmax, batch.forces, step_fn, step_args)
+                           outs, status, alive, columns["forces"].start, batch._fmax, batch.forces,
+                           batch.delay_line(), step_fn, step_args)
         k = 0
         while k < steps:
             # stage: how much of period k is done (0 nothing, 1 recorded and controlled, 2 also stepped)

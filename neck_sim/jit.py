@@ -29,7 +29,7 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 KERNEL_SOURCES = ("neck_sim/jit.py", "neck_sim/analytic/geometry.py", "neck_sim/analytic/cables.py",
                   "neck_sim/analytic/dynamics.py", "neck_sim/analytic/estimation.py",
                   "controllers/tension.py", "controllers/estimators.py", "controllers/computed_torque.py",
-                  "neck_sim/logs/jsonrecords.py")
+                  "neck_sim/logs/jsonrecords.py", "neck_sim/plant.py", "controllers/closed_loop.py")
 
 
 def _sources_digest() -> str:

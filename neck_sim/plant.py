@@ -61,6 +61,7 @@ from neck_sim.analytic.cables import motor_angles_rigid
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, motor_friction
 from neck_sim import native
 from neck_sim.effects import Effects
+from neck_sim.jit import kernel
 from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
 from neck_sim.params import NeckParams, default_params
@@ -527,6 +528,30 @@ def _quantise(theta: np.ndarray, inv_res, res, out: np.ndarray) -> np.ndarray:
     return np.multiply(np.rint(out, out=out), res, out=out)
 
 
+@kernel
+def delayed_controls(k, forces, hist, R, delay, dt, period, ctrl) -> None:
+    """ctrl (K, n_sub, m) N: the command in force at each sub-step of the period that starts at
+    sub-step k (K,), for commands ``forces`` (K, m) N issued now and actuation delays ``delay`` (K,)
+    s (sub-step dt, control period ``period``, s).  The command of period p is issued at p T and
+    acts from p T + delay; before the first one takes effect the delay line holds the first
+    command.  hist (K, R_max, m): each plant's ring buffer of commands (period q's at q % R (K,),
+    enough for every period a delay reaches back to); this period's forces are written into it.
+    """
+    K, nsub, m = ctrl.shape
+    for r in range(K):
+        cur = k[r] // nsub
+        q = cur % R[r]
+        for c in range(m):
+            hist[r, q, c] = forces[r, c]
+        for s in range(nsub):
+            row = q
+            if delay[r] > 0.0:
+                p = math.floor(((k[r] + s) * dt - delay[r]) / period + 1e-9)
+                row = min(cur, max(0, p)) % R[r]
+            for c in range(m):
+                ctrl[r, s, c] = hist[r, row, c]
+
+
 def truth_columns(n: int, m: int) -> dict[str, slice]:
     """Columns of :attr:`PlantBatch.out` (width 3m + 2n + 1) for N = n joints and m cables; the C
     function ``neck_step_batch`` writes the same layout."""
@@ -582,12 +607,11 @@ class PlantBatch:
         self.dt, self.period = p0.timestep, p0.period
         col = lambda values: np.array(values, dtype=float)[:, None]   # noqa: E731  (K, 1) for broadcasting
         self._fmax = col([p._fmax for p in plants])
-        self._delay = np.array([p._delay for p in plants])
+        self._delay = np.array([p._delay for p in plants], dtype=float)
         self._delayed = np.flatnonzero(self._delay > 0.0)
         # ring buffer of commands: period q's at q % R, enough for every period a delay reaches back to
         self._R = np.array([int(math.ceil(d / self.period)) + 2 if d > 0 else 1 for d in self._delay])
         self.hist = np.zeros((K, int(self._R.max()), m))
-        self._rows = np.arange(K)
         if fresh:
             self.k = np.zeros(K, dtype=np.int64)
             self.frame_index = np.ones(K, dtype=np.int64)     # camera frame j is due at j / camera_rate_hz
@@ -696,22 +720,29 @@ class PlantBatch:
     #    events in one numba kernel that calls neck_step_batch itself)
     def quiet_periods(self) -> int:
         """How many control periods from now need none of :meth:`step_checked`'s Python: native
-        backend, no actuation delay (its delay line is worked out in Python), no camera frame due.
+        backend, no camera frame due (the delay line is :func:`delayed_controls`, a kernel).
         The caller steps them through :meth:`native_step` and then calls :meth:`ran_periods`."""
-        if _DISPATCH.backend != "native" or self._delayed.size:
+        if _DISPATCH.backend != "native":
             return 0
         return max(0, (self._cam_lead - 1) // self.nsub)     # periods whose _cam_lead stays > nsub
 
     def native_step(self) -> tuple:
-        """(address of ``neck_step_batch``, its arguments) for one undelayed period with the forces
-        of ``self.forces`` and no camera capture: pointers as integers, C ints as np.int32.  The
-        address is 0 off the native backend (where :meth:`quiet_periods` is 0)."""
+        """(address of ``neck_step_batch``, its arguments) for one period with no camera capture,
+        commanding ``self.forces`` or, with an actuation delay, ``self.ctrl`` (which the caller fills
+        with :func:`delayed_controls`): pointers as integers, C ints as np.int32.  The address is 0
+        off the native backend (where :meth:`quiet_periods` is 0)."""
         K, plants, models, datas, active, nsub, m, n = self._c_args
         i32, addr = np.int32, ctypes.addressof
+        per_substep = self._delayed.size > 0
         args = (i32(K), addr(plants), addr(models), addr(datas), int(active), i32(nsub), i32(m), i32(n),
-                int(self._c_forces), i32(0), 0, *(int(a) for a in self._c_out))
+                int(self._c_ctrl if per_substep else self._c_forces), i32(per_substep), 0,
+                *(int(a) for a in self._c_out))
         native = _DISPATCH.backend == "native"
         return ctypes.cast(_DISPATCH.lib.step_batch, ctypes.c_void_p).value if native else 0, args
+
+    def delay_line(self) -> tuple:
+        """The arguments of :func:`delayed_controls` but the forces (needed when some delay > 0)."""
+        return self.k, self.hist, self._R, self._delay, self.dt, self.period, self.ctrl
 
     def ran_periods(self, count: int) -> None:
         """Bookkeeping of :meth:`step_checked` after ``count`` periods stepped through
@@ -727,9 +758,7 @@ class PlantBatch:
         nsub, k0 = self.nsub, self.k
         per_substep = self._delayed.size > 0
         if per_substep:
-            cur = k0 // nsub
-            self.hist[self._rows, cur % self._R] = self.forces
-            self._delayed_controls(k0, cur)
+            delayed_controls(k0, self.forces, self.hist, self._R, self._delay, self.dt, self.period, self.ctrl)
         if self._framed:
             self.frames = [None] * self.K
             self._framed = False
@@ -761,17 +790,6 @@ class PlantBatch:
         """Sub-steps until the first active plant's next camera frame."""
         lead = (self.next_cam - self.k)[self.active > 0]
         return int(lead.min()) if lead.size else 1 << 62
-
-    def _delayed_controls(self, k0: np.ndarray, cur: np.ndarray) -> None:
-        """ctrl (K, n_sub, m): the command in force at each sub-step.  The command of period p is
-        issued at p T and acts from p T + delay; before the first one takes effect the delay line
-        holds the first command."""
-        self.ctrl[:] = self.forces[:, None, :]
-        dl = self._delayed
-        ks = k0[dl, None] + np.arange(self.nsub)
-        p = np.floor((ks * self.dt - self._delay[dl, None]) / self.period + 1e-9).astype(np.int64)
-        p = np.minimum(cur[dl, None], np.maximum(0, p))
-        self.ctrl[dl] = self.hist[dl[:, None], p % self._R[dl, None]]
 
     def _schedule_frames(self, due: np.ndarray, k0: np.ndarray) -> None:
         """capture (K, n_sub): frames due at the end of each sub-step (a frame already late is taken
