@@ -12,6 +12,7 @@ mix with the contract topics' and cost the reader nothing.
 from __future__ import annotations
 
 import datetime
+import functools
 import importlib.metadata
 import json
 import math
@@ -38,6 +39,7 @@ _MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 
 _PENDING_ROWS = 256          # samples buffered by the per-sample methods before encoding
 
 
+@functools.lru_cache(maxsize=None)     # reading a package's metadata costs about 1 ms; it cannot change in a run
 def _version(package: str) -> str:
     try:
         return importlib.metadata.version(package)
