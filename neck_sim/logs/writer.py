@@ -72,14 +72,16 @@ def _chunk_parts(writer: Writer):
 
 
 class _PackedMessageIndex(MessageIndex):
-    """A MessageIndex record that serialises its (log_time, offset) pairs in one numpy call
-    (the library packs each number separately: about 6 us per message)."""
+    """A MessageIndex record whose (log_time, offset) pairs are kept as (T, 2) arrays, one per
+    batch, and serialised in one numpy call (the library keeps a tuple per message and packs each
+    number separately: about 6 us per message).  A pair the library appends itself also works."""
 
     def write(self, stream) -> None:
+        pairs = np.concatenate([np.asarray(r, dtype="<u8").reshape(-1, 2) for r in self.records])
         stream.start_record(Opcode.MESSAGE_INDEX)
         stream.write2(self.channel_id)
-        stream.write4(len(self.records) * 16)
-        stream.write(np.asarray(self.records, dtype="<u8").reshape(-1).tobytes())
+        stream.write4(len(pairs) * 16)
+        stream.write(pairs.tobytes())
         stream.finish_record()
 
 
@@ -338,7 +340,7 @@ class LogWriter:
             index = builder.message_indices.get(ch)
             if index is None:
                 index = builder.message_indices[ch] = _PackedMessageIndex(channel_id=ch, records=[])
-            index.records.extend(zip(ns[i:j].tolist(), (offsets[i:j] + base).tolist()))
+            index.records.append(np.column_stack((ns[i:j], offsets[i:j] + base)))
             lo, hi = int(ns[i:j].min()), int(ns[i:j].max())
             builder.message_start_time = lo if builder.num_messages == 0 else min(lo, builder.message_start_time)
             builder.message_end_time = max(hi, builder.message_end_time)
