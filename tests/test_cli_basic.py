@@ -55,3 +55,20 @@ def test_shared_params_options(tmp_path):
         params_from_args(parser.parse_args(["--params", str(path), "--n-joints", "3"]))
     with pytest.raises(ValueError, match="n-joints"):
         params_from_args(parser.parse_args(["--n-joints", "0"]))
+
+
+def test_commands_import_mujoco_without_opengl_and_leave_the_users_choice():
+    """The CLI skips MuJoCo's GLFW probe (a subprocess at import) and restores MUJOCO_GL for children."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os, sys\nfrom neck_sim.cli import main\nassert main(['params']) == 0\n"
+            "import mujoco.rendering.classic.gl_context as gl\n"
+            "print('RESULT', 'glfw' in sys.modules, hasattr(gl, 'GLContext'), os.environ.get('MUJOCO_GL'))")
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert out.splitlines()[-1] == "RESULT False False None"
+    env["MUJOCO_GL"] = "glfw"         # a user's choice is MuJoCo's choice (glfw: what plain mujoco loads)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert out.splitlines()[-1] == "RESULT True True glfw"

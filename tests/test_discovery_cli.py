@@ -28,9 +28,10 @@ def viscous_log(tmp_path_factory):
     return case, p
 
 
-def _strip(src, dst, keep=("/neck/motors", "/neck/camera")):
+def _strip(src, dst, keep=("/neck/motors", "/neck/camera"), edit=None):
     """Copy only the measured topics and the ``neck`` record (no truth, reference, estimate, run
-    record, attachments), with the mcap library itself."""
+    record, attachments), with the mcap library itself; ``edit(topic, payload) -> payload`` may
+    change messages on the way."""
     with open(src, "rb") as fh, open(dst, "wb") as out:
         reader = make_reader(fh)
         w = Writer(out)
@@ -46,7 +47,8 @@ def _strip(src, dst, keep=("/neck/motors", "/neck/camera")):
             if m.name == "neck":
                 w.add_metadata(m.name, dict(m.metadata))
         for _, ch, msg in reader.iter_messages(topics=list(keep)):
-            w.add_message(ids[ch.id], msg.log_time, msg.data, msg.publish_time)
+            data = msg.data if edit is None else edit(ch.topic, msg.data)
+            w.add_message(ids[ch.id], msg.log_time, data, msg.publish_time)
         w.finish()
 
 
@@ -201,29 +203,18 @@ def test_accepted_out_of_range_forces_are_named_in_every_output(viscous_log, tmp
     """Issue 14 item 2: forces accepted on request are said in the summary, the JSON and the report."""
     _, path = viscous_log
     spiked = tmp_path / "spiked.mcap"
-    with open(path, "rb") as fh, open(spiked, "wb") as out:       # one motors sample at -5 N, by the mcap library
-        reader = make_reader(fh)
-        w = Writer(out)
-        w.start()
-        summary = reader.get_summary()
-        ids = {}
-        for ch in summary.channels.values():
-            sc = summary.schemas[ch.schema_id]
-            ids[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
-                                            w.register_schema(sc.name, sc.encoding, sc.data))
-        for m in reader.iter_metadata():
-            w.add_metadata(m.name, dict(m.metadata))
-        k = 0
-        for _, ch, msg in reader.iter_messages(topics=["/neck/motors", "/neck/camera"]):
-            data = msg.data
-            if ch.topic == "/neck/motors":
-                if k == 1000:
-                    sample = json.loads(data)
-                    sample["force"][1] = -5.0
-                    data = json.dumps(sample).encode()
-                k += 1
-            w.add_message(ids[ch.id], msg.log_time, data, msg.publish_time)
-        w.finish()
+    seen = {"motors": 0}
+
+    def spike(topic, data):            # motors sample 1000: cable 2 at -5 N
+        if topic == "/neck/motors":
+            seen["motors"] += 1
+            if seen["motors"] == 1001:
+                sample = json.loads(data)
+                sample["force"][1] = -5.0
+                return json.dumps(sample).encode()
+        return data
+
+    _strip(path, spiked, edit=spike)
     assert main(["diagnose", str(spiked), "--quiet"]) == 2
     assert "--accept-out-of-range-forces" in capsys.readouterr().err
     js, rep = tmp_path / "d.json", tmp_path / "report"

@@ -87,12 +87,29 @@ def write_traceback(exc: BaseException) -> str:
     return path
 
 
+def _import_mujoco_without_opengl() -> None:
+    """Import MuJoCo with its OpenGL platform disabled, unless the user chose one (``MUJOCO_GL``).
+
+    No command draws in its own process (``neck_sim.render`` renders in a child that picks its
+    backend), and MuJoCo's default GLFW platform costs a probe subprocess at import (about 50 ms
+    of a command's start).  The variable is restored at once, so children see the user's choice.
+    """
+    if "mujoco" in sys.modules or os.environ.get("MUJOCO_GL"):
+        return
+    os.environ["MUJOCO_GL"] = "disable"
+    try:
+        import mujoco  # noqa: F401
+    finally:
+        del os.environ["MUJOCO_GL"]
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:       # --help (0) or a bad option (2, argparse printed the usage)
         return exc.code if isinstance(exc.code, int) else 2
     name = f"neck-sim {args.command}"
+    _import_mujoco_without_opengl()
     try:
         with _sigterm_as_exception():
             return int(args._run(args) or 0)
