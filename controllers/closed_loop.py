@@ -181,10 +181,13 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
     Per period: record the encoders and the truth row, ``control_rows``, clip the forces to
     [0, f_max] into ``forces`` as PlantBatch.step does, the commands of each sub-step if some plant
     has an actuation delay (``delay_line``: the arguments of ``delayed_controls`` but the forces),
-    one ``neck_step_batch`` call (native backend only: k1 = k0 otherwise).  Returns (k, stage, fatal): periods before k are done; period
-    k is untouched (stage 0, k = k1), recorded and controlled but not stepped (stage 1: period k1,
-    a controller failed or a force is not finite), or also stepped with ``fatal`` plants diverged
-    (stage 2).  The caller does the rest of period k.
+    one ``neck_step_batch`` call at ``step_fn`` (native backend only: k1 = k0 otherwise).
+
+    Returns (k, stage, fatal): periods before k are done; period k is untouched (stage 0, k = k1),
+    recorded and controlled but not stepped (stage 1: period k1, a controller failed or a force is
+    not finite), or also stepped with ``fatal`` plants diverged (stage 2).  The caller does the
+    rest of period k.  The kernel runs without the GIL: MuJoCo's Python warning handler, which
+    mj_step may call, takes it itself (the mujoco bindings' trampoline acquires it).
     """
     K, m = enc.shape
     delayed = False
