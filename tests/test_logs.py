@@ -417,3 +417,27 @@ def test_foxglove_frames_follow_the_camera_without_truth(tmp_path):
     assert sum(c.topic == "/tf" for _, c, _ in msgs) == 3
     ids = {json.loads(m.data)["entities"][0]["id"] for _, c, m in msgs if c.topic == "/neck/scene"}
     assert ids == {"neck/camera"}
+
+
+def test_chunks_are_zstd_at_level_1(tmp_path):
+    """Chunks are what zstandard writes at level 1 for their content (parsed from the file's bytes)."""
+    import struct
+
+    import zstandard
+
+    p = default_params(3)
+    path = tmp_path / "a.mcap"
+    write_arrays(path, p, synthetic_arrays(p, seconds=3.0, seed=2), chunk_size=64 * 1024)
+    buf = path.read_bytes()
+    with open(path, "rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    assert len(chunks) >= 2
+    for ci in chunks:
+        pos = ci.chunk_start_offset + 9 + 28                       # opcode, length; times, size, crc
+        (n,) = struct.unpack_from("<I", buf, pos)
+        assert buf[pos + 4: pos + 4 + n] == b"zstd"
+        pos += 4 + n
+        (size,) = struct.unpack_from("<Q", buf, pos)
+        data = buf[pos + 8: pos + 8 + size]
+        plain = zstandard.ZstdDecompressor().decompress(data, max_output_size=ci.uncompressed_size)
+        assert data == zstandard.ZstdCompressor(level=1).compress(plain)
