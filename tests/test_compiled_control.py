@@ -138,7 +138,11 @@ def short_path(n=3):
     return cycloidal_path(np.radians([[0.0] * n, [25.0, -15.0, 20.0][:n]]), 0.3, 0.1)
 
 
-def test_lockstep_runs_equal_single_runs():
+@pytest.mark.parametrize("group", [16, 2])          # 2: the three runs go as a group of 2, then 1
+def test_lockstep_runs_equal_single_runs(group, monkeypatch):
+    import controllers.closed_loop as closed_loop
+
+    monkeypatch.setattr(closed_loop, "LOCKSTEP_GROUP", group)
     p = default_params(3)
     heavy = p.replace(**{"inertia.bar_mass": 1.3 * p.inertia.bar_mass})
     cases = [(p, 0, 2), (heavy, 1, 3), (p, 2, 1)]
@@ -147,6 +151,7 @@ def test_lockstep_runs_equal_single_runs():
               for pp, s, law in cases]
     batch = run_lockstep([Plant(pp, seed=s) for pp, s, _ in cases],
                          [ComputedTorqueController(pp, law) for pp, _, law in cases], [traj] * 3, progress=False)
+    assert len(batch) == 3
     for a, b in zip(single, batch):
         assert a.saturated.shape == a.requested.shape == a.force.shape == (len(a.t), 4)
         for name in ("alpha", "alpha_hat", "force", "requested", "saturated", "theta", "gamma", "camera_alpha"):
