@@ -38,7 +38,7 @@ from controllers.computed_torque import (ComputedTorqueController, ControllerSta
                                         output_slices, reference_table, step_error)
 from controllers.trajectories import Trajectory
 from neck_sim.jit import kernel
-from neck_sim.plant import _DISPATCH, Plant, PlantBatch, delayed_controls, truth_columns
+from neck_sim.plant import _DISPATCH, Plant, PlantBatch, clip_forces, delayed_controls, truth_columns
 from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "LOCKSTEP_GROUP", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
@@ -179,8 +179,9 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
     first half of period k1 if ``control_k1``.
 
     Per period: record the encoders and the truth row, ``control_rows``, clip the forces to
-    [0, f_max] into ``forces`` as PlantBatch.step does, the commands of each sub-step if some plant
-    has an actuation delay (``delay_line``: the arguments of ``delayed_controls`` but the forces),
+    [0, f_max] into ``forces`` (``clip_forces``, as PlantBatch.step does), the commands of each
+    sub-step if some plant has an actuation delay (``delay_line``: the arguments of
+    ``delayed_controls`` but the forces),
     one ``neck_step_batch`` call at ``step_fn`` (native backend only: k1 = k0 otherwise).
 
     Returns (k, stage, fatal): periods before k are done; period k is untouched (stage 0, k = k1),
@@ -209,12 +210,7 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
                     return k, 1, 0
         if k == k1:
             return k, 1, 0
-        for r in range(K):
-            for c in range(m):
-                # np.minimum(np.maximum(f, 0), f_max): on ties numpy returns the second operand (-0.0 -> 0.0)
-                f = outs[r, k, fcol + c]
-                f = f if f > 0.0 else 0.0
-                forces[r, c] = f if f < fmax[r, 0] else fmax[r, 0]
+        clip_forces(outs[:, k, fcol:fcol + m], fmax, forces)
         if delayed:
             delayed_controls(delay_line[0], forces, *delay_line[1:])
         fatal = _call_c(step_fn, step_args)

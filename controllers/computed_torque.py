@@ -48,7 +48,8 @@ from neck_sim.jit import kernel
 from neck_sim.params import NeckParams, default_params
 
 __all__ = ["ControlLaw", "OutsideWorkspaceError", "MotorReference", "ControlStep", "ComputedTorqueController",
-           "reference_table", "output_slices", "ControllerState", "advance", "step_error"]
+           "reference_table", "output_slices", "ControllerState", "advance", "step_error",
+           "outside_workspace"]
 
 
 class OutsideWorkspaceError(ValueError):
@@ -254,11 +255,14 @@ def step_error(status: int, alpha_hat: np.ndarray, alpha_max: float) -> ValueErr
     if status == _SINGULAR_ESTIMATE:
         return UnreachableError("alpha_hat: Z Z^T is singular (pose outside the workspace)")
     if _OUTSIDE <= status < _TENSION:
-        j = status - _OUTSIDE
-        return OutsideWorkspaceError(
-            f"alpha_hat: joint {j + 1} estimated at {np.degrees(alpha_hat[j]):.1f} deg, outside the "
-            f"workspace |alpha| <= {np.degrees(alpha_max):.1f} deg")
+        return outside_workspace(status - _OUTSIDE, alpha_hat, alpha_max)
     return TensionInfeasibleError(infeasible_message(status - _TENSION, ()))
+
+
+def outside_workspace(j: int, alpha_hat: np.ndarray, alpha_max: float) -> OutsideWorkspaceError:
+    """The error of an estimate alpha_hat (N,) rad whose joint j (0-based) is beyond alpha_max rad."""
+    return OutsideWorkspaceError(f"alpha_hat: joint {j + 1} estimated at {np.degrees(alpha_hat[j]):.1f} deg, "
+                                 f"outside the workspace |alpha| <= {np.degrees(alpha_max):.1f} deg")
 
 
 class ControllerState:

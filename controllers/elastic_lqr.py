@@ -33,7 +33,7 @@ import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
 from controllers.computed_torque import (ComputedTorqueController, ControlLaw, ControlStep, MotorReference,
-                                         OutsideWorkspaceError)
+                                         outside_workspace)
 from controllers.tension import distribute_tensions
 from controllers.trajectories import reference_feedforward
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
@@ -276,10 +276,7 @@ class ElasticLQRController:
         self.slide = s
         a_max = p.geometry.alpha_max
         if np.any(np.abs(self.alpha) > a_max):
-            j = int(np.argmax(np.abs(self.alpha)))
-            raise OutsideWorkspaceError(
-                f"alpha_hat: joint {j + 1} estimated at {np.degrees(self.alpha[j]):.1f} deg, outside the "
-                f"workspace |alpha| <= {np.degrees(a_max):.1f} deg")
+            raise outside_workspace(int(np.argmax(np.abs(self.alpha))), self.alpha, a_max)
         gamma, f_ff = reference_feedforward(ref, p)
         # the reference state: cables stretched by the feed-forward tension (force minus the believed
         # friction and the reference's motor inertia), motors at the speeds of eq (21)

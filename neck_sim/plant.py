@@ -66,7 +66,7 @@ from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["Plant", "PlantBatch", "truth_columns", "Truth", "PlantDivergedError", "set_backend", "get_backend",
+__all__ = ["Plant", "PlantBatch", "truth_columns", "clip_forces", "Truth", "PlantDivergedError", "set_backend", "get_backend",
            "native_available", "NativeBuildError", "MAX_CABLES"]
 
 
@@ -529,6 +529,18 @@ def _quantise(theta: np.ndarray, inv_res, res, out: np.ndarray) -> np.ndarray:
 
 
 @kernel
+def clip_forces(requested, fmax, out) -> None:
+    """out (K, m) N: ``requested`` (K, m) N clipped to [0, f_max] with f_max (K, 1) N per plant, as
+    ``np.minimum(np.maximum(requested, 0), fmax)`` (a -0.0 becomes 0.0); rows must be finite."""
+    K, m = out.shape
+    for r in range(K):
+        for c in range(m):
+            f = requested[r, c]
+            f = f if f > 0.0 else 0.0
+            out[r, c] = f if f < fmax[r, 0] else fmax[r, 0]
+
+
+@kernel
 def delayed_controls(k, forces, hist, R, delay, dt, period, ctrl) -> None:
     """ctrl (K, n_sub, m) N: the command in force at each sub-step of the period that starts at
     sub-step k (K,), for commands ``forces`` (K, m) N issued now and actuation delays ``delay`` (K,)
@@ -633,7 +645,7 @@ class PlantBatch:
         self.capture = np.zeros((K, nsub), dtype=np.int32)
         self.frame_alpha = np.zeros((K, nsub, n))
         self._cols = truth_columns(n, m)
-        self.out = np.zeros((K, 3 * m + 2 * n + 1))
+        self.out = np.zeros((K, self._cols["loop_gap"].stop))
         self.fatal = np.zeros(K, dtype=np.int32)
         self._encoders = np.zeros((K, m))
         self.active = np.ones(K, dtype=np.uint8)
@@ -703,7 +715,7 @@ class PlantBatch:
                 self.stop(i, ValueError(f"forces: contains NaN or infinity: {f[i].tolist()}"))
                 stopped.append(int(i))
             f = np.where(ok[:, None], f, 0.0)
-        np.minimum(np.maximum(f, 0.0, out=self.forces), self._fmax, out=self.forces)
+        clip_forces(f, self._fmax, self.forces)
         if self.step_checked():
             stopped += self.stop_diverged()
         return stopped

@@ -86,9 +86,13 @@ def _plants(params, backend=None):
 
 
 def _forces(k, K, m):
-    """Open-loop forces, different per plant and period (N)."""
+    """Open-loop forces, different per plant and period (N); every 20th period one cable asks for
+    1000 N and another for -5 N (both clipped, to f_max and to 0)."""
     t = k * 0.002
-    return 20.0 + 8.0 * np.sin(2 * np.pi * 1.3 * t + np.arange(K)[:, None] + 0.7 * np.arange(m))
+    f = 20.0 + 8.0 * np.sin(2 * np.pi * 1.3 * t + np.arange(K)[:, None] + 0.7 * np.arange(m))
+    if k % 20 == 10:
+        f[:, 0], f[:, -1] = 1000.0, -5.0
+    return f
 
 
 @pytest.mark.parametrize("backend", ["native", "python"])

@@ -119,7 +119,14 @@ def _frame_transform_values(frame_origin, frame_angle) -> np.ndarray:
     """(K, 4 (N+1)) values of :func:`_frame_transforms_template` from origins (K, N+1, 2), angles (K, N+1)."""
     origin = np.asarray(frame_origin, dtype=float)
     half = 0.5 * np.asarray(frame_angle, dtype=float)
-    return np.concatenate([origin.reshape(len(origin), -1), np.sin(half), np.cos(half)], axis=1)
+    values = np.concatenate([origin.reshape(len(origin), -1), np.sin(half), np.cos(half)], axis=1)
+    return np.round(values, _DRAWN_DIGITS)
+
+
+def _scene_values(corners) -> np.ndarray:
+    """(K, 8 N) values of :func:`_scene_template` from joint corners (K, N, 4, 2) m."""
+    corners = np.asarray(corners, dtype=float)
+    return np.round(corners.reshape(len(corners), -1), _DRAWN_DIGITS)
 
 
 def _line(kind: int, corner_ids, rgba, thickness: float) -> dict:
@@ -174,8 +181,8 @@ def scene_update(log_time: int, corners, source: str, routing=None) -> dict:
     ``routing`` (default the paper's) through the axes of the pulleys they wrap.
     """
     corners = np.asarray(corners, dtype=float)
-    return orjson.loads(jsonrecords.render(_scene_template(len(corners), source, routing), corners.reshape(-1),
-                                           log_time))
+    values = _scene_values(corners[None])[0]
+    return orjson.loads(jsonrecords.render(_scene_template(len(corners), source, routing), values, log_time))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,10 +206,9 @@ def visualization_batches(log_times, alphas, params: NeckParams, source: str, tf
     kin = forward_kinematics(alphas, params, allow_outside_range=True)   # a diverged estimate is still drawn
     out = [Batch(SCENE_TOPIC, "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA,
                  _scene_template(params.n_joints, source, params.routing),
-                 np.round(np.asarray(kin.corners, dtype=float).reshape(len(log_ns), -1), _DRAWN_DIGITS), log_ns)]
+                 _scene_values(kin.corners), log_ns)]
     if tf:
         out.append(Batch(TF_TOPIC, "foxglove.FrameTransforms", FRAME_TRANSFORMS_SCHEMA,
                          _frame_transforms_template(params.n_joints),
-                         np.round(_frame_transform_values(kin.frame_origin, kin.frame_angle), _DRAWN_DIGITS),
-                         log_ns))
+                         _frame_transform_values(kin.frame_origin, kin.frame_angle), log_ns))
     return out
