@@ -384,6 +384,8 @@ def ordered_figures(figures) -> list[str]:
 
 
 def _report(settings, results, sections, figures, render_note, out) -> str:
+    from neck_sim.experiments.summary import summary_table
+
     t = results["timings_s"]
     L = ["# neck-sim: the paper reproduced in simulation", "",
          f"Generated {results['finished']} by `neck-sim reproduce{' --quick' if settings.quick else ''}` "
@@ -393,6 +395,10 @@ def _report(settings, results, sections, figures, render_note, out) -> str:
          "(Table 1) and variable-stiffness cables (Table 2) as its true values, so identification can be checked "
          "against the truth, and the controllers' model is close to the plant's: tracking is better than on the "
          "prototype, whose unmodelled effects the simulation does not have.", ""]
+    try:
+        L += ["## Summary", "", summary_table(results), ""]
+    except (KeyError, TypeError, IndexError):  # a stage did not give its numbers: its section says why
+        pass
     L += sections
     L += ["## Figures", "", "In the paper's order; each caption names the paper's figure it reproduces.", ""]
     for name in ordered_figures(figures):
