@@ -151,9 +151,11 @@ def run_blocks(blocks: list[Block], name: str, workdir: Path, root: Path = ROOT)
 @pytest.mark.parametrize("path", doc_files(), ids=lambda p: str(p.relative_to(ROOT)))
 def test_doc_blocks_run_as_printed(path: Path, tmp_path: Path):
     name = str(path.relative_to(ROOT))
-    blocks = runnable(extract_blocks(path.read_text(encoding="utf-8"), name))
+    every = extract_blocks(path.read_text(encoding="utf-8"), name)
+    blocks = runnable(every)
     if not blocks:
-        pytest.skip(f"{name}: no block to run" + ("" if SLOW else " (slow blocks need NECK_SIM_SLOW_DOCS=1)"))
+        slow = sum(b.marker == "slow" for b in every)
+        pytest.skip(f"{name}: no block to run" + (f" ({slow} slow: NECK_SIM_SLOW_DOCS=1 runs them)" if slow else ""))
     proc = run_blocks(blocks, name, tmp_path)
     tail = (proc.stdout[-6000:] + "\n--- stderr ---\n" + proc.stderr[-6000:])
     assert proc.returncode == 0, f"{name}: a code block failed as printed\n{tail}"
