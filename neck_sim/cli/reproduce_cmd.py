@@ -10,7 +10,8 @@ from neck_sim.cli.common import nonnegative_int, positive_float, positive_int
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce)")
+    parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce, in the current directory; a checkout's .gitignore "
+                             "ignores it at the root)")
     parser.add_argument("--quick", action="store_true",
                         help="half-length trajectories and fewer samples: the same stages in about a third of the time")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="plant seed (camera noise) (default 0)")
