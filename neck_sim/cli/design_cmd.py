@@ -26,6 +26,14 @@ def add_arguments(parser) -> None:
                         help="evaluate only the parameter file's routing")
 
 
+def neck_params(args):
+    """The neck to study: ``--params`` / ``--n-joints``, else the paper's design with
+    :data:`DEFAULT_N_JOINTS` X-joints (sets ``args.n_joints`` then)."""
+    if args.params is None and args.n_joints is None:
+        args.n_joints = DEFAULT_N_JOINTS
+    return params_from_args(args)
+
+
 def _candidates(params, args):
     from neck_sim.design import Strategy, routing_strategies
 
@@ -52,9 +60,7 @@ def run(args) -> int:
     check_paths(inputs={"--params": args.params}, dirs={"-o": args.out})
     if args.samples < 1:
         raise ValueError(f"--samples: need at least 1, got {args.samples}")
-    if args.params is None and args.n_joints is None:
-        args.n_joints = DEFAULT_N_JOINTS
-    params = params_from_args(args)
+    params = neck_params(args)
     out = os.path.abspath(args.out)
     if args.params and os.path.abspath(args.params) in {os.path.join(out, f) for f in OUTPUT_FILES}:
         raise ValueError(f"-o {args.out}: would write over the parameter file {args.params}")
