@@ -19,6 +19,7 @@ upgrade or interpreter never meets an old entry (old folders are left for the us
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -39,11 +40,11 @@ _IMPORTS = re.compile(r"^\s*from\s+((?:neck_sim|controllers|identification)(?:\.
                       r"(?:\(([^)]*)\)|([^\n]*))", re.M)
 
 
-def _module_file(module: str) -> str | None:
-    """The source file (relative to the packages' folder) of a module of the packages, if any."""
+def _module_file(module: str, root: str) -> str | None:
+    """The source file (relative to ``root``, the packages' folder) of a module, if any."""
     base = module.replace(".", "/")
     for rel in (base + ".py", base + "/__init__.py"):
-        if os.path.isfile(os.path.join(_ROOT, rel)):
+        if os.path.isfile(os.path.join(root, rel)):
             return rel
     return None
 
@@ -68,7 +69,7 @@ def kernel_sources(root: str = _ROOT) -> tuple[str, ...]:
     for rel in list(sources):
         for module, grouped, names in _IMPORTS.findall(texts[rel]):
             names = re.findall(r"\w+", grouped or names.split("#")[0])
-            for dep in [_module_file(module)] + [_module_file(f"{module}.{n}") for n in names]:
+            for dep in [_module_file(module, root)] + [_module_file(f"{module}.{n}", root) for n in names]:
                 if dep is not None and dep in texts:
                     sources.add(dep)
     return tuple(sorted(sources))
@@ -98,6 +99,7 @@ def _package_version() -> str:
 _DIGEST = _sources_digest()
 
 
+@functools.lru_cache(maxsize=1)
 def kernel_cache_root() -> str:
     """The folder of this build's compiled kernels (see the module docstring); not created here."""
     key = (f"neck_sim-{_package_version()}-py{sys.version_info[0]}{sys.version_info[1]}"
@@ -146,7 +148,7 @@ def kernel(fn):
     disp = numba.njit(nogil=True, error_model="numpy")(fn)
     try:
         disp._cache = _KernelCache(disp.py_func)       # what numba's enable_caching() does, relocated
-    except RuntimeError:                                # no locator: the cache folder is not writable
+    except (RuntimeError, OSError):                     # no writable cache folder: compile in every process
         pass
     return disp
 
