@@ -211,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _user_error(name: str, exc: BaseException) -> int:
     """Errors from bad input name their problem: show that on one line, not a traceback."""
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:      # "[Errno 2] ...: 'x'" -> "x: ..."
+        exc = f"{exc.filename}: {exc.strerror}"
     print(f"{name}: error: {one_line(exc)}", file=sys.stderr)
     return 2
 
