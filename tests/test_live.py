@@ -155,6 +155,10 @@ def test_live_options_are_checked():
 
     with pytest.raises(ValueError, match="pace"):
         LiveView(default_params(), port=0, pace="slow")
+    with LiveView(default_params(), port=0) as first:
+        taken = int(first.url.rsplit(":", 1)[1])
+        with pytest.raises(OSError, match=f"live view: cannot listen on 127.0.0.1:{taken} "):
+            LiveView(default_params(), port=taken)
     with pytest.raises(ValueError, match="live: expected True or a neck_sim.live.LiveView"):
         neck_env.load(live="yes")
     r = subprocess.run([sys.executable, "-m", "neck_sim.cli", "simulate", "--live", "--live-port", "70000"],
