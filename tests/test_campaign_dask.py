@@ -149,17 +149,48 @@ def test_a_cluster_whose_workers_all_died_fails_after_the_worker_timeout(separat
     assert 1.0 + 3 <= waited < 1.0 + 3 + 5, waited
 
 
+# a caller that turns SIGTERM into an exception as `neck-sim` does, then runs long jobs on the cluster
 _CALLER = """
-import sys, time
+import signal, sys, time
 sys.path.insert(0, {root!r})
 from controllers.campaign import ExecutorSpec, open_executor, run_campaign
-with open_executor(ExecutorSpec(cluster={address!r})) as ex:
-    print("connected", flush=True)
-    try:
+
+def stop(signum, frame):
+    raise KeyboardInterrupt
+signal.signal(signal.SIGTERM, stop)
+try:
+    with open_executor(ExecutorSpec(cluster={address!r})) as ex:
+        print("connected", flush=True)
         run_campaign(time.sleep, [30] * 3, ex, progress=False)
-    except Exception as exc:
-        print(f"{{type(exc).__name__}}: {{exc}}", file=sys.stderr)
+except KeyboardInterrupt:
+    sys.exit(143)
+except Exception as exc:
+    print(f"{{type(exc).__name__}}: {{exc}}", file=sys.stderr)
 """
+
+
+def test_sigterm_ends_a_dask_campaign_at_once_and_quietly(separate_cluster):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    address, _, worker = separate_cluster
+    caller = subprocess.Popen([sys.executable, "-c", _CALLER.format(root=os.getcwd(), address=address)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert caller.stdout.readline() == "connected\n"
+        time.sleep(1.0)
+        t0 = time.monotonic()
+        caller.send_signal(signal.SIGTERM)
+        _, err = caller.communicate(timeout=30)
+        waited = time.monotonic() - t0
+    finally:
+        caller.kill()
+    assert caller.returncode == 143 and err == "", err
+    assert waited < 10, waited
+    assert worker.poll() is None                     # the cluster stays up for the next campaign
 
 
 def test_a_scheduler_that_dies_ends_the_campaign_with_one_line(separate_cluster):
