@@ -71,15 +71,16 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _dask(command: str, **fmt):
-    """``command`` (``dask ...``) as a process of its own group, quiet."""
+def _dask(command: str, env=None, **fmt):
+    """``command`` (``dask ...``) as a process of its own group, quiet; ``env``: extra variables."""
+    import os
     import subprocess
     import sys
 
     argv = command.format(**fmt).split()
     module = {"scheduler": "distributed.cli.dask_scheduler", "worker": "distributed.cli.dask_worker"}[argv[1]]
     return subprocess.Popen([sys.executable, "-m", module, *argv[2:]], start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, **(env or {})})
 
 
 def _kill_group(proc) -> None:
@@ -213,6 +214,24 @@ def test_a_scheduler_that_dies_ends_the_campaign_with_one_line(separate_cluster)
     assert err.startswith("ClusterError: cluster tcp://127.0.0.1:") and "lost the connection" in err, err
     assert err.count("\n") == 1, err                     # one line: no traceback, no log record
     assert waited < 5, waited
+
+
+def test_a_job_that_kills_its_dask_worker_fails_naming_it_after_allowed_failures():
+    import os
+
+    # allowed-failures set where the scheduler starts, as docs/campaigns.md says; the nanny
+    # restarts the worker after each death
+    port = _free_port()
+    sched = _dask(SCHEDULER, env={"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "1"}, port=port, dash=_free_port())
+    worker = _dask(WORKER, port=port)
+    try:
+        spec = ExecutorSpec(cluster=f"tcp://127.0.0.1:{port}", connect_timeout=30, worker_timeout=30)
+        with open_executor(spec) as ex:
+            exc = _bounded(lambda: run_campaign(os._exit, [3], ex, labels=["crash"], progress=False), seconds=40)
+        assert isinstance(exc, RuntimeError) and re.match(r"job 'crash' failed: KilledWorker: .* on 2 different workers", str(exc)), exc
+    finally:
+        for p in (worker, sched):
+            _kill_group(p)
 
 
 def _listening(pid: int) -> set[str]:
