@@ -237,9 +237,11 @@ def _dask_executor(spec: ExecutorSpec) -> Iterator[cf.Executor]:
                            f"({exc}); start one with `dask scheduler` and workers with "
                            f"`dask worker {spec.cluster} --nthreads 1`") from None
     pool = ClusterPool(client, spec.cluster, spec.worker_timeout)
-    log = logging.getLogger("distributed.client")
-    quiet = _DropOnceLost(pool.lost)      # a lost scheduler: our one line, not the client's traceback
-    log.addFilter(quiet)
+    # a lost scheduler: our one line, not the tracebacks Dask logs while the client's comms close
+    quiet = _DropOnceLost(pool.lost)
+    handlers = logging.getLogger("distributed").handlers + logging.getLogger().handlers
+    for h in handlers:
+        h.addFilter(quiet)
     try:
         try:
             client.wait_for_workers(1, timeout=spec.connect_timeout)
@@ -251,7 +253,8 @@ def _dask_executor(spec: ExecutorSpec) -> Iterator[cf.Executor]:
     finally:
         pool.shutdown(wait=False)
         client.close(timeout=spec.connect_timeout)
-        log.removeFilter(quiet)
+        for h in handlers:
+            h.removeFilter(quiet)
 
 
 class ClusterPool(cf.Executor):
@@ -346,14 +349,18 @@ class ClusterPool(cf.Executor):
 
 
 class _DropOnceLost(logging.Filter):
-    """Drops ``distributed.client`` records once the scheduler is lost (its reconnect traceback)."""
+    """While a campaign runs on Dask: drops Dask's INFO records (connection chatter) and, once the
+    scheduler is lost, everything (the tracebacks of the client's comms closing).  Installed on the
+    handlers of the ``distributed`` and root loggers, which every ``distributed.*`` record reaches."""
 
     def __init__(self, lost: threading.Event):
         super().__init__()
         self._lost = lost
 
     def filter(self, record: logging.LogRecord) -> bool:
-        return not self._lost.is_set()
+        if not record.name.startswith("distributed"):
+            return True
+        return record.levelno >= logging.WARNING and not self._lost.is_set()
 
 
 def map_jobs(fn: Callable[[Any], Any], jobs: Sequence[Any], executor: cf.Executor | None, *,

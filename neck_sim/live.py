@@ -38,6 +38,9 @@ __all__ = ["LiveView", "active", "PACES", "DEFAULT_PORT"]
 
 PACES = ("realtime", "fast")
 DEFAULT_PORT = 8765                  # Foxglove's default for a WebSocket connection
+# Messages queued per client before the SDK drops the oldest (its default is 1024): about 2 s of a
+# `fast` run, some 20 MB at most, so that a viewer slower than the simulation loses nothing.
+_BACKLOG = 65536
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("neck_sim_live_view", default=None)
 _SOURCES = ("truth", "estimate", "camera")     # topics whose joint angles are drawn
 
@@ -90,7 +93,8 @@ class LiveView:
         self._context = foxglove.Context()
         try:
             self._server = foxglove.start_server(name="neck-sim", host=host, port=port, context=self._context,
-                                                 server_listener=_listener(self._subscribed))
+                                                 server_listener=_listener(self._subscribed),
+                                                 message_backlog_size=_BACKLOG)
         except Exception as exc:       # the SDK's error for a port in use or a bad host
             raise OSError(f"live view: cannot listen on {host}:{port} ({exc})") from None
         self.url = f"ws://{host}:{self._server.port}"

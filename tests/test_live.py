@@ -50,8 +50,8 @@ def receive(url: str, *, seconds: float = 60):
                         await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
                 elif msg[0] == 1:                          # message data: sub id u32, log time u64, payload
                     sub, log_ns = struct.unpack_from("<IQ", msg, 1)
-                    got.setdefault(by_sub[sub], []).append((time.monotonic(), log_ns, json.loads(msg[13:])))
-        return channels, got
+                    got.setdefault(by_sub[sub], []).append((time.monotonic(), log_ns, msg[13:]))
+        return channels, {topic: [(a, ns, json.loads(m)) for a, ns, m in msgs] for topic, msgs in got.items()}
 
     return asyncio.run(run())
 
