@@ -170,47 +170,40 @@ except Exception as exc:
 """
 
 
-def test_sigterm_ends_a_dask_campaign_at_once_and_quietly(separate_cluster):
+def _caller_outcome(address: str, fault, timeout: float):
+    """Start the caller on ``address``; once it runs its jobs, ``fault()``; returns (exit status,
+    stderr, seconds from the fault to the caller's exit)."""
     import os
-    import signal
     import subprocess
     import sys
     import time
 
-    address, _, worker = separate_cluster
     caller = subprocess.Popen([sys.executable, "-c", _CALLER.format(root=os.getcwd(), address=address)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert caller.stdout.readline() == "connected\n"
         time.sleep(1.0)
         t0 = time.monotonic()
-        caller.send_signal(signal.SIGTERM)
-        _, err = caller.communicate(timeout=30)
-        waited = time.monotonic() - t0
+        fault(caller)
+        _, err = caller.communicate(timeout=timeout)
+        return caller.returncode, err, time.monotonic() - t0
     finally:
         caller.kill()
-    assert caller.returncode == 143 and err == "", err
+
+
+def test_sigterm_ends_a_dask_campaign_at_once_and_quietly(separate_cluster):
+    import signal
+
+    address, _, worker = separate_cluster
+    status, err, waited = _caller_outcome(address, lambda caller: caller.send_signal(signal.SIGTERM), 30)
+    assert status == 143 and err == "", err
     assert waited < 10, waited
     assert worker.poll() is None                     # the cluster stays up for the next campaign
 
 
 def test_a_scheduler_that_dies_ends_the_campaign_with_one_line(separate_cluster):
-    import os
-    import subprocess
-    import sys
-    import time
-
     address, sched, _ = separate_cluster
-    caller = subprocess.Popen([sys.executable, "-c", _CALLER.format(root=os.getcwd(), address=address)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert caller.stdout.readline() == "connected\n"
-        t0 = time.monotonic()
-        _kill_group(sched)
-        _, err = caller.communicate(timeout=25)
-        waited = time.monotonic() - t0
-    finally:
-        caller.kill()
+    _, err, waited = _caller_outcome(address, lambda caller: _kill_group(sched), 25)
     assert err.startswith("ClusterError: cluster tcp://127.0.0.1:") and "lost the connection" in err, err
     assert err.count("\n") == 1, err                     # one line: no traceback, no log record
     assert waited < 5, waited
