@@ -49,7 +49,7 @@ from typing import Any, Callable, Iterator, Sequence
 from neck_sim.atomic import atomic_write_bytes
 
 __all__ = ["ExecutorSpec", "default_workers", "open_executor", "map_jobs", "run_campaign", "run_in_scratch",
-           "write_shipped", "ClusterError"]
+           "write_shipped", "ClusterError", "WorkerDied", "LocalPool", "ClusterPool"]
 
 # tcp://, tls:// (or ucx://, inproc://) + host + port: what distributed.Client accepts as a scheduler address
 _ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s:/]+(:\d+)?/?$")
@@ -57,6 +57,10 @@ _ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s:/]+(:\d+)?/?$")
 
 class ClusterError(RuntimeError):
     """The Dask cluster could not be reached, has no workers, or is not installed."""
+
+
+class WorkerDied(BrokenProcessPool):
+    """A local worker process died (killed, out of memory, a crash in compiled code) under a job."""
 
 
 def default_workers() -> int:
@@ -158,10 +162,31 @@ class LocalPool(cf.Executor):
                                             initargs=(self._notes, os.getpid()))
 
     def submit(self, fn, /, *args, **kwargs) -> cf.Future:
+        """``fn(*args, **kwargs)`` on a worker; if the pool breaks under it, the future fails with
+        :class:`WorkerDied` naming ``fn`` (a ``BrokenProcessPool``)."""
         self._count += 1
-        fut = self._pool.submit(_announced, self._count, fn, *args, **kwargs)
-        fut.job_key = self._count
-        return fut
+        inner = self._pool.submit(_announced, self._count, fn, *args, **kwargs)
+        outer = cf.Future()
+        outer.job_key = self._count
+        name = getattr(fn, "__qualname__", repr(fn))
+
+        def settle(done: cf.Future) -> None:
+            try:
+                if done.cancelled():
+                    outer.cancel()
+                elif isinstance(done.exception(), BrokenProcessPool):
+                    outer.set_exception(WorkerDied(f"the worker process running {name} died (killed by a signal "
+                                                   "or out of memory)"))
+                elif done.exception() is not None:
+                    outer.set_exception(done.exception())
+                else:
+                    outer.set_result(done.result())
+            except cf.InvalidStateError:      # cancelled by its caller meanwhile
+                pass
+
+        inner.add_done_callback(settle)
+        outer.add_done_callback(lambda f: f.cancelled() and inner.cancel())
+        return outer
 
     def _drain(self) -> None:
         while not self._notes.empty():
