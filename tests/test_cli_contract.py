@@ -237,3 +237,20 @@ def test_early_ctrl_c_is_one_line(delay):
     assert proc.returncode in (130, -signal.SIGINT), (proc.returncode, err)
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("neck-sim") and "interrupted (Ctrl-C)" in lines[0], err
+
+
+def test_ctrl_c_inside_an_extension_import_is_an_interrupt(monkeypatch, capsys):
+    """A Ctrl-C during ``import mujoco`` surfaces as ImportError("initialization failed") chained to
+    the KeyboardInterrupt: exit 130 with the interrupt's one line, not an internal error."""
+    import neck_sim.cli as cli
+
+    def interrupted_import():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(cli, "_import_mujoco_without_opengl", interrupted_import)
+    assert cli.main(["params"]) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "interrupted (Ctrl-C)" in err, err

@@ -104,9 +104,13 @@ def test_simulate_live_serves_the_logs_topics_and_samples_in_real_time(tmp_path)
     assert abs(len(truth_scenes) - 30 * duration) <= 2
     assert len(truth_scenes[0]["entities"][0]["lines"][0]["points"]) == 2 + 6 * 3     # base bar + 3 joints
     assert {t["child_frame_id"] for t in got["/tf"][0][2]["transforms"]} == {"neck", "bar0", "bar1", "bar2", "bar3"}
-    # paced: the samples arrive over the simulated duration, not at once
-    arrivals = [a for a, _, _ in truth]
-    assert arrivals[-1] - arrivals[0] >= 0.9 * duration, (arrivals[-1] - arrivals[0], duration)
+    # paced: the samples arrive over the simulated duration, not at once.  Measured over the run's
+    # second half: on a loaded machine the client may start reading late and catch up on the first
+    # samples in one burst, which says nothing about the server's pacing.
+    arrivals = np.array([a for a, _, _ in truth])
+    mid = int(np.searchsorted(log.truth.t, log.truth.t[0] + duration / 2))
+    second_half = log.truth.t[-1] - log.truth.t[mid]
+    assert arrivals[-1] - arrivals[mid] >= 0.9 * second_half, (arrivals[-1] - arrivals[mid], second_half)
 
 
 def test_simulate_live_fast_sends_every_sample():

@@ -203,10 +203,25 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError, RuntimeError) as exc:
         return _user_error(name, exc)
     except Exception as exc:        # a bug: one line here, the whole story in a file
+        if _caused_by_interrupt(exc):
+            # a Ctrl-C inside an extension module's import (mujoco: "initialization failed")
+            print(f"{name}: interrupted (Ctrl-C); unfinished output files were removed", file=sys.stderr)
+            return 130
         path = write_traceback(exc)
         print(f"{name}: internal error: {type(exc).__name__}: {one_line(exc)} (a bug in neck-sim; please report "
               f"it with the full traceback written to {path})", file=sys.stderr)
         return 70
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """True when ``exc`` was raised while handling, or because of, a KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _user_error(name: str, exc: BaseException) -> int:
