@@ -31,7 +31,7 @@ class MeasuredData:
 
     Built from measured topics only (:class:`~identification.preprocessing.Measurements`) and the
     nominal constants ``params`` (geometry, drive, springs, masses; never friction or cables).
-    Shapes: T control-rate samples, S slow-grid samples, N joints, C = N + 1 cables.
+    Shapes: T control-rate samples, S slow-grid samples, N joints, C = m cables (the routing's).
     """
 
     def __init__(self, meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
@@ -44,7 +44,7 @@ class MeasuredData:
             raise ValueError("camera: the diagnosis needs the /neck/camera joint angles (torque block eq 51 and "
                              "elongations eq 27); this log has none")
         self.n = params.n_joints
-        self.C = self.n + 1
+        self.C = params.n_cables
         act = params.actuation
         self.ratio = act.R / act.r_d
         fast = prep.fast
