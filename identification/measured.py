@@ -71,7 +71,7 @@ class MeasuredData:
         y_fast, y = self.observations(0.0)
         # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5.  Not
         # x_c <= 0: with a pretension the measured elongation is negative on a taut cable
-        a = self.to_slow(reg.friction_basis(self.theta_dot_fast, params))
+        a = reg.slow_friction_basis(prep, params)
         W = (self.Z * a[:, None, :]).reshape(-1, self.C)
         yT = (np.einsum("sij,sj->si", self.Z, y) - self.linkage).reshape(-1)
         try:

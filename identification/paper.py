@@ -157,7 +157,7 @@ def reconstruct_elongation(force, theta_dot, params: NeckParams, *, k, lam, f_s,
 def _torque_errors(prep: Prepared, params: NeckParams, dyn: reg.Dynamics, f_s) -> tuple[dict, dict]:
     """Eqs (51)-(53) corrected: Gamma_m = Z f vs Z(a f_s + I_a (R/r_d)^2 x_c_ddot) + M alpha_ddot + c + g."""
     ia = params.actuation.reflected_inertia
-    a = reg.friction_basis(prep.theta_dot, params)
+    a = reg.slow_friction_basis(prep, params)
     inertial = np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) + dyn.c + dyn.g
     x_dd = prep.x_c_ddot if prep.x_c_ddot is not None else np.zeros_like(prep.force)
     gamma_m = np.einsum("sij,sj->si", dyn.Z, prep.force)
@@ -192,11 +192,15 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
     def at_camera(a):
         return np.stack([np.interp(tc, t, a[:, j]) for j in range(a.shape[1])], axis=1)
 
-    try:
-        tri = estimate_alpha_triangular(np.broadcast_to(theta, xs.shape), params, xs)
-    except UnreachableError as exc:
-        tri = None
-        notes.append(f"eq (33) reconstruction failed: {exc}")
+    tri = None
+    if not params.routing.is_paper_kind(params.n_joints):
+        notes.append("eq (33) reconstruction skipped: it needs the paper's routing (cable j ends at joint j, one "
+                     "long left cable); this neck's routing differs")
+    else:
+        try:
+            tri = estimate_alpha_triangular(np.broadcast_to(theta, xs.shape), params, xs)
+        except UnreachableError as exc:
+            notes.append(f"eq (33) reconstruction failed: {exc}")
     alpha0 = np.broadcast_to(prep.alpha[0], (len(names), prep.alpha.shape[1]))
     pinv = estimate_alpha_pinv(np.broadcast_to(theta, xs.shape), params, xs, alpha0=alpha0)
     for i, n in enumerate(names):
@@ -257,7 +261,10 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         series[f"tension_{name}"] = t_lhs
         tension_error[name] = _mean_abs((t_rhs - t_lhs)[taut])
     alpha_error = {}
-    if s.reconstruct_alpha and (elastic is not None or variable is not None):
+    if s.reconstruct_alpha and params.n_cables < params.n_joints:
+        notes.append(f"alpha_hat (§5.5) not reconstructed: eq (35) needs at least as many cables as joints (this "
+                     f"neck: {params.n_cables} cables, {params.n_joints} joints)")
+    elif s.reconstruct_alpha and (elastic is not None or variable is not None):
         cable_models = {}
         if elastic is not None:
             cable_models["constant"] = (elastic.group("k"), np.zeros(params.n_cables))

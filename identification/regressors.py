@@ -41,8 +41,8 @@ from neck_sim.params import NeckParams
 
 from identification.preprocessing import Prepared
 
-__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "tension_from_forces", "taut_samples",
-           "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
+__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "slow_friction_basis", "tension_from_forces",
+           "taut_samples", "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
 
 
 class Regression(NamedTuple):
@@ -97,10 +97,22 @@ def friction_basis(theta_dot, params: NeckParams) -> np.ndarray:
     return motor_friction(th, params, f_s=np.ones(th.shape[-1]))
 
 
+def slow_friction_basis(prep: Prepared, params: NeckParams) -> np.ndarray:
+    """The eq (37) basis on the slow grid, (S, m): computed at the control rate from the encoders'
+    speed and taken through the chain the forces took (``prep.chain``: parallel filtering, as the
+    diagnosis does).  The arctan of the filtered slow-grid speed would differ from the filtered
+    arctan wherever the speed oscillates faster than the common cutoff (the ringing of a neck with
+    fewer cables than N + 1: f_s 6-8 % low on the 10-joint, 4-cable neck).  A ``Prepared`` without a
+    chain (``excitation.prepared_from_prediction``, unfiltered) uses its slow-grid speed."""
+    if prep.chain is None or prep.fast is None:
+        return friction_basis(prep.theta_dot, params)
+    return prep.chain(friction_basis(prep.fast.theta_dot, params))
+
+
 def tension_from_forces(prep: Prepared, params: NeckParams, f_s) -> np.ndarray:
     """Cable tensions of eq (41)/(55): f - a f_s - (R/r_d) I_a theta_ddot, (S, m) N."""
     act = params.actuation
-    return (prep.force - friction_basis(prep.theta_dot, params) * np.asarray(f_s, dtype=float)
+    return (prep.force - slow_friction_basis(prep, params) * np.asarray(f_s, dtype=float)
             - (act.R / act.r_d) * act.I_a * prep.theta_ddot)
 
 
@@ -137,7 +149,7 @@ def _diag_rows(cols: list[np.ndarray], taut: np.ndarray | None) -> tuple[np.ndar
 
 def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool):
     """(Z diag(a) (S*N, m), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
-    a = friction_basis(prep.theta_dot, params)
+    a = slow_friction_basis(prep, params)
     Za = dyn.Z * a[:, None, :]
     f = prep.force
     if elastic:
@@ -164,7 +176,7 @@ def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, 
     dyn = dyn or joint_dynamics(prep, params)
     act = params.actuation
     C = params.n_cables
-    a = friction_basis(prep.theta_dot, params)
+    a = slow_friction_basis(prep, params)
     Wt, keep = _diag_rows([prep.x_c, prep.x_c_dot, a], taut)
     Yt = (prep.force - (act.R / act.r_d) * act.I_a * prep.theta_ddot)[keep]
     Za, yq = _torque_rows(prep, params, dyn, elastic=True)
