@@ -56,10 +56,10 @@ def run(args) -> int:
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
                    require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
-    print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
-          f"model: {model.describe()}", file=sys.stderr)
     if params is not None:
         check_params_fit_log(params, log, args.params)
+    print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
+          f"model: {model.describe()}", file=sys.stderr)
     diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
     print(format_summary(diag))               # its notes name what the reader accepted on request
     if args.json:

@@ -53,13 +53,13 @@ def run(args) -> int:
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
     log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
+    if params is not None:
+        check_params_fit_log(params, log, args.params)
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
     print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
           file=sys.stderr)
-    if params is not None:
-        check_params_fit_log(params, log, args.params)
     result = identify_log(log, settings, params=params, models=models)
     print(format_tables(result, reference=f"--params {args.params}" if args.params else "nominal"))
     summary = result.to_dict()
