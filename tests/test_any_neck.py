@@ -70,7 +70,7 @@ def test_diagnose_any_routing_with_a_nominal_file(neck10, tmp_path, capsys):
     log, p10, p = neck10
     out = tmp_path / "diag.json"
     assert main(["diagnose", log, "--params", str(p10), "--steps", "1", "--no-resim", "--quiet",
-                 "--candidates", "joint_friction,payload", "--json", str(out)]) == 0
+                 "--candidates", "joint_friction,payload", "--json", str(out), "--report", str(tmp_path / "rep")]) == 0
     capsys.readouterr()
     d = json.loads(out.read_text())
     names = list(d["baseline"]["parameters"])
@@ -78,6 +78,8 @@ def test_diagnose_any_routing_with_a_nominal_file(neck10, tmp_path, capsys):
     assert [n for n in names if n.startswith("lambda(")] == [f"lambda({i})" for i in range(1, 5)]
     assert {c["effect"] for c in d["steps"][0]["candidates"]} == {"joint_friction", "payload"}
     assert any("alpha_hat not evaluated: eq (35) needs at least as many cables as joints" in n for n in d["notes"])
+    # the report's residual figures plot every joint against the motor speed of its strongest cable
+    assert (tmp_path / "rep" / "residuals_torque.png").stat().st_size > 0 and (tmp_path / "rep" / "report.md").exists()
 
 
 def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
