@@ -82,7 +82,7 @@ def detection(directory: str, seeds) -> None:
             where, est = "", float("nan")
             if diag.findings:
                 f = diag.findings[0]
-                where = ",".join(f"j{j}" for j in f.joints) or ",".join(f"c{c}" for c in f.cables)
+                where = ",".join(f"j{j}" for j in f.joints or ()) or ",".join(f"c{c}" for c in f.cables or ()) or "-"
                 if spec.symbol in f.parameters:
                     est = f.parameters[spec.symbol].value
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
