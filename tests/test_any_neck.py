@@ -82,6 +82,14 @@ def test_diagnose_any_routing_with_a_nominal_file(neck10, tmp_path, capsys):
     assert (tmp_path / "rep" / "residuals_torque.png").stat().st_size > 0 and (tmp_path / "rep" / "report.md").exists()
 
 
+def test_what_the_routing_cannot_do_is_refused_in_one_line(neck10, tmp_path, capsys):
+    log, _, _ = neck10
+    assert main(["identify", log, "--simulators", "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err] and "--simulators: cannot handle this log's routing (10 joints, 4 cables)" in err
+    assert not (tmp_path / "o.json").exists()
+
+
 def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
     log, _, _ = neck10
     other = tmp_path / "p10_paper.toml"

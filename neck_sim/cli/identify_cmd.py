@@ -55,6 +55,11 @@ def run(args) -> int:
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
     if params is not None:
         check_params_fit_log(params, log, args.params)
+    nominal = params or log.params
+    if args.simulators and not nominal.routing.is_paper_kind(nominal.n_joints):
+        raise ValueError(f"--simulators: cannot handle this log's routing ({nominal.n_joints} joints, "
+                         f"{nominal.n_cables} cables): the §5.6 comparison replays the run under the paper's "
+                         f"computed-torque law, which needs the paper's routing; identify without --simulators")
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
