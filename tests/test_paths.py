@@ -110,10 +110,8 @@ def test_write_errors_name_the_users_path_not_the_temporary_file(tmp_path):
     with pytest.raises(OSError) as info:
         atomic_write_json(target, {"a": 1})
     assert str(info.value) == f"cannot write {target}: it is a directory"
-    w = LogWriter(target, default_params(3))
-    w.motors(0.0, np.zeros(4), np.ones(4))
-    with pytest.raises(OSError) as info:
-        w.close()
+    with pytest.raises(OSError) as info:      # refused when the writer opens, before any data
+        LogWriter(target, default_params(3))
     assert str(target) in str(info.value) and TEMP_PREFIX not in str(info.value)
     assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
 
@@ -283,3 +281,183 @@ def test_plausible_logs_and_angles_near_the_joint_limit_pass(tmp_path):
     a["camera"]["alpha"][:, 0] = math.pi / 2 + 0.05      # camera noise just beyond the joint limit
     log = read_log(write_log(tmp_path / "ok.mcap", a))
     assert log.warnings == () and log.camera.alpha[0, 0] == a["camera"]["alpha"][0, 0]
+
+
+# -- output and input path kinds: only regular files are written or read -------------------------
+
+import stat  # noqa: E402
+import socket as _socket  # noqa: E402
+import contextlib  # noqa: E402
+
+
+@contextlib.contextmanager
+def bounded(seconds=10):
+    """Fail (instead of hanging the suite) when the body blocks longer than ``seconds``."""
+    def alarm(signum, frame):
+        raise TimeoutError(f"blocked for more than {seconds} s")
+    previous = signal.signal(signal.SIGALRM, alarm)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _no_diagnosis(monkeypatch):
+    import identification.diagnosis
+
+    class Reached(BaseException):      # not caught by main
+        pass
+
+    def stop(*a, **k):
+        raise Reached
+    monkeypatch.setattr(identification.diagnosis, "diagnose_log", stop)
+    return Reached
+
+
+def test_a_report_directory_holding_the_model_input_is_refused(tmp_path, log, capsys, monkeypatch):
+    """``diagnose --model m.json --report .`` would write the report's model.json over m.json."""
+    _no_diagnosis(monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "model.json").write_text('{"model": ["dry_friction"]}\n')
+    before = snapshot(tmp_path)
+    code, _, err = run_cli(["diagnose", log, "--model", "model.json", "--report", "."], capsys)
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "--report" in err and "model.json" in err and "refusing to write over an input" in err
+    assert snapshot(tmp_path) == before
+
+
+def test_an_output_file_inside_a_report_directory_is_refused(tmp_path, log, capsys, monkeypatch):
+    """``diagnose --report . --json report.md``: the report would replace the JSON."""
+    _no_diagnosis(monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(["diagnose", log, "--report", ".", "--json", "report.md"], capsys)
+    assert code == 2 and "--json report.md" in err and "--report" in err and "its own path" in err
+
+
+def test_an_output_directory_holding_an_input_is_fine(tmp_path, log, capsys, monkeypatch):
+    reached = _no_diagnosis(monkeypatch)
+    with pytest.raises(reached):
+        main(["diagnose", str(log), "--report", str(tmp_path), "--json", str(tmp_path / "d.json")])
+
+
+@pytest.mark.parametrize("mode", [0o444, 0o400])
+def test_a_read_only_output_is_refused_even_as_root(mode, tmp_path, capsys):
+    out = tmp_path / "ro.toml"
+    out.write_text("keep me\n")
+    out.chmod(mode)
+    code, _, err = run_cli(["params", "-o", out], capsys)
+    assert code == 2 and f"-o {out}" in err and "read-only" in err
+    assert out.read_text() == "keep me\n" and stat.S_IMODE(out.stat().st_mode) == mode
+    with pytest.raises(OSError, match="read-only"):
+        atomic_write_json(out, {"a": 1})
+    assert out.read_text() == "keep me\n"
+
+
+def test_an_existing_output_keeps_its_mode(tmp_path, capsys):
+    out = tmp_path / "p.json"
+    out.write_text("{}")
+    out.chmod(0o640)
+    code, _, _ = run_cli(["params", "-o", out], capsys)
+    assert code == 0 and "geometry" in out.read_text() and stat.S_IMODE(out.stat().st_mode) == 0o640
+    fresh = tmp_path / "new.json"
+    atomic_write_json(fresh, {"a": 1})
+    assert stat.S_IMODE(fresh.stat().st_mode) == 0o666 & ~_umask()
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _special(kind, tmp_path, keep):
+    """A path of ``kind`` (and the word the refusal must contain)."""
+    if kind == "null copy":
+        path = tmp_path / "null"
+        os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        return path, "character device"
+    if kind == "/dev/full":
+        return "/dev/full", "character device"
+    if kind == "fifo":
+        path = tmp_path / "fifo"
+        os.mkfifo(path)
+        return path, "FIFO"
+    if kind == "socket":
+        path = tmp_path / "sock"
+        s = _socket.socket(_socket.AF_UNIX)
+        s.bind(str(path))
+        keep.append(s)
+        return path, "socket"
+    if kind == "link to a pipe fd":
+        r, w = os.pipe()
+        keep.extend([r, w])
+        path = tmp_path / "stdout.json"
+        os.symlink(f"/proc/self/fd/{w}", path)
+        return path, "FIFO"
+    raise AssertionError(kind)
+
+
+KINDS = ["null copy", "/dev/full", "fifo", "socket", "link to a pipe fd"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_outputs_that_are_not_regular_files_are_refused(kind, tmp_path, capsys):
+    keep = []
+    try:
+        path, word = _special(kind, tmp_path, keep)
+        before = os.stat(path).st_mode
+        with bounded():
+            code, _, err = run_cli(["params", "-o", path], capsys)
+        assert code == 2 and f"-o {path}" in err and word in err and "not a regular file" in err
+        assert os.stat(path).st_mode == before and os.path.islink(path) == (kind == "link to a pipe fd")
+        with pytest.raises(OSError, match="not a regular file"):
+            atomic_write_json(path, {"a": 1})
+        assert os.stat(path).st_mode == before
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(TEMP_PREFIX)]
+    finally:
+        for k in keep:
+            k.close() if hasattr(k, "close") else os.close(k)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "null copy", "socket"])
+@pytest.mark.parametrize("option", ["LOG", "--params", "--motors"])
+def test_inputs_that_are_not_regular_files_are_refused_without_blocking(kind, option, tmp_path, capsys):
+    keep = []
+    try:
+        path, word = _special(kind, tmp_path, keep)
+        argv = {"LOG": ["identify", path], "--params": ["simulate", "--params", path, "--no-log"],
+                "--motors": ["import", "--motors", path, "-o", tmp_path / "o.mcap"]}[option]
+        with bounded(5):
+            code, _, err = run_cli(argv, capsys)
+        assert code == 2 and len(err.splitlines()) == 1
+        assert f"{option} {path}" in err and word in err and "not a regular file" in err
+    finally:
+        for k in keep:
+            k.close() if hasattr(k, "close") else os.close(k)
+
+
+def test_a_symlink_to_a_regular_output_is_written_through(tmp_path, capsys):
+    target = tmp_path / "real.json"
+    target.write_text("{}")
+    link = tmp_path / "link.json"
+    os.symlink(target, link)
+    code, _, _ = run_cli(["params", "-o", link], capsys)
+    assert code == 0 and os.path.islink(link) and "geometry" in target.read_text()
+
+
+def test_long_legal_output_names_work_and_too_long_ones_are_refused_before_the_work(tmp_path, log, capsys,
+                                                                                    monkeypatch):
+    long_name = tmp_path / ("p" * 240 + ".toml")          # 245 characters: legal (NAME_MAX 255)
+    code, _, err = run_cli(["params", "-o", long_name], capsys)
+    assert code == 0, err
+    assert long_name.exists() and [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+    import neck_sim.replay
+
+    def no_work(*a, **k):
+        raise AssertionError("the replay ran before the output path was checked")
+    monkeypatch.setattr(neck_sim.replay, "replay", no_work)
+    too_long = tmp_path / ("r" * 256 + ".mcap")
+    code, _, err = run_cli(["replay", log, "-o", too_long], capsys)
+    assert code == 2 and "name is too long" in err and "255" in err

@@ -41,12 +41,13 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
-    from identification.report import format_summary, write_report
+    from identification.report import REPORT_FILES, format_summary, write_report
     from neck_sim.logs import read_log
 
     check_paths(inputs={"LOG": args.log, "--params": args.params,
                         "--model": args.model if os.path.isfile(args.model) else None},
-                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report})
+                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report},
+                contents={"--report": REPORT_FILES})
     model = parse_model(args.model)              # fail early on a bad --model
     params = load_params_file(args.params) if args.params else None
     kw = {}
