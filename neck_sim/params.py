@@ -624,21 +624,26 @@ class NeckParams:
         return default_params(n_joints)
 
     def replace(self, **groups_or_fields) -> "NeckParams":
-        """Copy with whole groups replaced (``geometry=...``) or dotted fields (``**{"geometry.r": 0}``)."""
+        """Copy with whole groups replaced (``geometry=...``) or dotted fields (``**{"geometry.r": 0}``).
+
+        Each group is validated once, with all its changed fields set: the order of the changes
+        does not matter (b = 0.12 m then L = 0.2 m is as valid as L then b)."""
         groups = {name: getattr(self, name) for name in _GROUPS}
+        fields_by_group: dict[str, dict[str, Any]] = {}
         for key, value in groups_or_fields.items():
             if "." in key:
                 grp, fld = key.split(".", 1)
                 if grp not in groups:
                     raise ParameterError(f"{key}: unknown group {grp!r}")
-                try:
-                    groups[grp] = dataclasses.replace(groups[grp], **{fld: value})
-                except TypeError:
-                    raise ParameterError(f"{key}: unknown field") from None
+                if fld not in {f.name for f in fields(groups[grp])}:
+                    raise ParameterError(f"{key}: unknown field")
+                fields_by_group.setdefault(grp, {})[fld] = value
             elif key in groups:
                 groups[key] = value
             else:
                 raise ParameterError(f"{key}: unknown parameter group")
+        for grp, changes in fields_by_group.items():
+            groups[grp] = dataclasses.replace(groups[grp], **changes)
         return NeckParams(**groups)
 
 

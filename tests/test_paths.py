@@ -461,3 +461,22 @@ def test_long_legal_output_names_work_and_too_long_ones_are_refused_before_the_w
     too_long = tmp_path / ("r" * 256 + ".mcap")
     code, _, err = run_cli(["replay", log, "-o", too_long], capsys)
     assert code == 2 and "name is too long" in err and "255" in err
+
+
+# -- valid input refused ---------------------------------------------------------------------------
+
+def test_a_neck_with_a_long_bar_reads_its_own_log_back(tmp_path):
+    """b = 0.12 m, L = 0.2 m is valid; the log's record must read back whatever the field order."""
+    from neck_sim.params import NeckParams
+    p = default_params(3)
+    wide = p.replace(**{"geometry.L": 0.2, "geometry.b": 0.12})
+    assert wide.replace(**{"geometry.b": 0.12, "geometry.L": 0.2}) == wide
+    assert (wide.geometry.b, wide.geometry.L) == (0.12, 0.2)
+    with pytest.raises(ValueError, match="must be longer than the bar"):
+        p.replace(**{"geometry.b": 0.12})
+    path = tmp_path / "wide.mcap"
+    with LogWriter(path, wide) as w:
+        for k in range(5):
+            w.motors(k / 500, np.zeros(4), np.full(4, 10.0))
+    back = read_log(path).params
+    assert isinstance(back, NeckParams) and (back.geometry.b, back.geometry.L) == (0.12, 0.2)
