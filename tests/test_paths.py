@@ -480,3 +480,25 @@ def test_a_neck_with_a_long_bar_reads_its_own_log_back(tmp_path):
             w.motors(k / 500, np.zeros(4), np.full(4, 10.0))
     back = read_log(path).params
     assert isinstance(back, NeckParams) and (back.geometry.b, back.geometry.L) == (0.12, 0.2)
+
+
+@pytest.mark.parametrize("option", ["--start", "--end"])
+def test_huge_window_bounds_are_a_window_not_a_traceback(option, log, capsys, monkeypatch):
+    import identification.paper
+
+    seen = {}
+
+    class Reached(BaseException):
+        pass
+
+    def stop(log, *a, **k):
+        seen["samples"] = log.motors.t.size
+        raise Reached
+    monkeypatch.setattr(identification.paper, "identify_log", stop)
+    if option == "--start":
+        code, _, err = run_cli(["identify", log, "--start", "1e308"], capsys)
+        assert code == 2 and "start = 1e+308" in err and "/neck/motors" in err and len(err.splitlines()) == 1
+    else:
+        with pytest.raises(Reached):
+            main(["identify", str(log), "--end", "1e308"])
+        assert seen["samples"] == read_log(log).motors.t.size

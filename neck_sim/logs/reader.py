@@ -40,6 +40,7 @@ _MAGIC = b"\x89MCAP0\r\n"
 _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_MESSAGE = 0x06, 0x07, 0x05
 _NUMBER_CHARS = b"0123456789.+-eE"
 _READ_ERRORS = (McapError, struct.error, ValueError, KeyError, IndexError, EOFError, OSError)
+_MAX_NS = 2**63 - 1
 _T_TOLERANCE_NS = 1000          # |t * 1e9 - log_time| allowed (the contract: the same instant)
 
 
@@ -132,7 +133,8 @@ def _to_ns(value: float | None, name: str) -> int | None:
     v = float(value)
     if not np.isfinite(v) or v < 0:
         raise LogError(f"read_log: {name} must be a finite time >= 0 s, got {value!r}")
-    return int(round(v * 1e9))
+    # beyond MCAP's time range (2^63 ns = 292 years) means "after every message"
+    return min(int(round(min(v, 1e12) * 1e9)), _MAX_NS)
 
 
 def read_log(path, *, start: float | None = None, end: float | None = None, topics=None,
