@@ -502,3 +502,30 @@ def test_huge_window_bounds_are_a_window_not_a_traceback(option, log, capsys, mo
         with pytest.raises(Reached):
             main(["identify", str(log), "--end", "1e308"])
         assert seen["samples"] == read_log(log).motors.t.size
+
+
+# -- parameter files: unit mistakes and implausible values are named -------------------------------
+
+@pytest.mark.parametrize("field, value, words", [
+    ("inertia.gravity", 98.1, ["inertia.gravity = 98.1 m/s^2", "10x Earth's"]),
+    ("geometry.b", 50.0, ["geometry.b = 50 m", "millimetres"]),
+    ("springs.rest_length", 46.0, ["springs.rest_length = 46 m", "millimetres"]),
+    ("inertia.bar_mass", 20.0, ["inertia.bar_mass = 20 kg", "grams"]),
+])
+def test_implausible_parameter_files_are_refused_naming_the_value(field, value, words, tmp_path, capsys):
+    from neck_sim.params import to_dict
+    data = to_dict(default_params(3))
+    grp, fld = field.split(".")
+    data[grp][fld] = value
+    if field == "geometry.b":                      # the whole geometry in mm, as a user would write it
+        data["geometry"].update(b=50.0, L=100.0, r=4.6)
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(data))
+    code, _, err = run_cli(["simulate", "--params", path, "--no-log"], capsys)
+    assert code == 2 and str(path) in err and len(err.splitlines()) == 1
+    assert all(w in err for w in words) and "--accept-implausible-params" in err
+    code, out, err = run_cli(["params", "--load", path, "--accept-implausible-params"], capsys)
+    if field == "springs.rest_length":          # 46 m is also longer than a side can be: still refused
+        assert code == 2 and "longer than a side" in err
+    else:
+        assert code == 0 and all(w in out for w in words) and "warning:" in out

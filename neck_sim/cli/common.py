@@ -15,15 +15,27 @@ def add_params_arguments(parser) -> None:
                         help="parameter file (.json/.toml, see `neck-sim params -o`); default: the paper's neck")
     parser.add_argument("--n-joints", type=int, default=None,
                         help="number of X-joints N (default 3, or the parameter file's)")
+    add_implausible_params_argument(parser)
 
 
-def load_params_file(path, option: str = "--params") -> P.NeckParams:
-    """``params.load(path)`` with every error naming the option and the file."""
+def add_implausible_params_argument(parser) -> None:
+    """``--accept-implausible-params``: load a parameter file whose values look like a unit mistake."""
+    parser.add_argument("--accept-implausible-params", action="store_true",
+                        help="accept parameter values that look like a unit mistake (lengths over 5 m, masses "
+                             "over 10 kg, gravity over 25 m/s^2; refused by default); a warning names them")
+
+
+def load_params_file(path, option: str = "--params", accept_implausible: bool = False) -> P.NeckParams:
+    """``params.load(path)`` with every error naming the option and the file; implausible values
+    accepted on request are printed as warnings."""
     try:
-        return P.load(path)
+        params = P.load(path, accept_implausible=accept_implausible)
     except (ValueError, OSError) as exc:
         text = str(exc)
         raise ValueError(text if os.fspath(path) in text else f"{option} {os.fspath(path)}: {text}") from None
+    for text in P.implausible_values(params):
+        print(f"warning: {option} {os.fspath(path)}: {text} (accepted: --accept-implausible-params)")
+    return params
 
 
 def params_from_args(args) -> P.NeckParams:
@@ -31,7 +43,7 @@ def params_from_args(args) -> P.NeckParams:
     if args.n_joints is not None and args.n_joints < 1:
         raise ValueError(f"--n-joints: must be >= 1, got {args.n_joints}")
     if args.params:
-        params = load_params_file(args.params)
+        params = load_params_file(args.params, accept_implausible=args.accept_implausible_params)
         if args.n_joints is not None and args.n_joints != params.n_joints:
             raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {params.n_joints})")
         return params

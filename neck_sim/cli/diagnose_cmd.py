@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
+from neck_sim.cli.common import (add_implausible_params_argument, add_force_range_argument, check_paths, load_params_file, nonnegative_float,
                                  positive_int, probability)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
@@ -22,6 +22,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--params", metavar="FILE",
                         help="nominal constants (.json/.toml, 'neck-sim params' format) instead of the log's neck "
                              "record; their friction and cable values only seed the fit (those are what is fitted)")
+    add_implausible_params_argument(parser)
     parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
     parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
     parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
@@ -49,7 +50,7 @@ def run(args) -> int:
                 files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report},
                 contents={"--report": REPORT_FILES})
     model = parse_model(args.model)              # fail early on a bad --model
-    params = load_params_file(args.params) if args.params else None
+    params = load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
