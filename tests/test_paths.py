@@ -529,3 +529,64 @@ def test_implausible_parameter_files_are_refused_naming_the_value(field, value, 
         assert code == 2 and "longer than a side" in err
     else:
         assert code == 0 and all(w in out for w in words) and "warning:" in out
+
+
+# -- measured data: encoders in degrees or counts, forces in kN ------------------------------------
+
+def _motor_table(seconds=0.2):
+    """A plausible motors table: theta ramps to 30 rad on cable 3 (a large move), forces 5-60 N."""
+    t = np.arange(int(seconds * 500)) / 500
+    theta = np.zeros((len(t), 4))
+    theta[:, 2] = 30.0 * t / t[-1]
+    theta[:, 0] = -8.0 * t / t[-1]
+    force = 5.0 + 55.0 * np.abs(np.sin(np.outer(t, [3.0, 5.0, 7.0, 11.0])))
+    return t, theta, force
+
+
+def _write_motor_csv(path, t, theta, force):
+    rows = ["t,theta1,theta2,theta3,theta4,force1,force2,force3,force4"]
+    rows += [",".join(repr(float(v)) for v in (ti, *th, *f)) for ti, th, f in zip(t, theta, force)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("mistake, words", [
+    ("degrees", ["encoder theta3 reaches 1718.87", "looks like degrees", "expected rad"]),
+    ("counts", ["encoder theta3 reaches 9778 ", "looks like encoder counts (2048 per turn"]),
+    ("kN", ["forces look like kilonewtons", "expected N", "f_max = 100 N"]),
+    ("none", []),
+])
+def test_unit_mistakes_in_measured_motors_are_named_at_import_and_in_logs(mistake, words, tmp_path, capsys):
+    t, theta, force = _motor_table()
+    if mistake == "degrees":
+        theta = np.degrees(theta)
+    elif mistake == "counts":
+        theta = np.round(theta * 2048 / (2 * math.pi))
+    elif mistake == "kN":
+        force = force / 1000
+    csv = _write_motor_csv(tmp_path / "m.csv", t, theta, force)
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    if mistake == "none":
+        assert code == 0, err
+        return
+    assert code == 2 and str(csv) in err and "/neck/motors" in err and all(w in err for w in words), err
+    assert not (tmp_path / "o.mcap").exists()
+    a = _measured()
+    a["motors"] = {"t": t, "theta": theta, "force": force}
+    a["camera"]["t"] = a["camera"]["t"][a["camera"]["t"] <= t[-1]]
+    a["camera"]["alpha"] = a["camera"]["alpha"][: len(a["camera"]["t"])]
+    path = write_log(tmp_path / "u.mcap", a)
+    code, _, err = run_cli(["identify", path], capsys)
+    assert code == 2 and str(path) in err and all(w in err for w in words), err
+
+
+def test_the_encoder_bound_holds_simulated_runs():
+    """The motor-angle bound sits above what the simulated neck reaches in its largest moves."""
+    from neck_sim.logs.contract import max_motor_angle
+    p = default_params(3)
+    limit = max_motor_angle(p)
+    # straight pose to alpha_max on every joint: the largest geometric winding of any cable
+    from neck_sim.analytic import cable_lengths
+    corners = np.array([[s * p.geometry.alpha_max] * 3 for s in (-1, 1)])
+    wound = np.abs(cable_lengths(corners, p)).max() * p.actuation.R / p.actuation.r_d
+    assert 2 * wound < limit < math.degrees(wound)

@@ -269,6 +269,46 @@ def _angle_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, params: Ne
             f"{cause}")
 
 
+def max_motor_angle(params: NeckParams) -> float:
+    """Largest plausible |theta| (rad at the motor shaft): the motor winding a whole neck's height of
+    cable, R / r_d x N (L + b + pi r).  Beyond it no cable exists to wind."""
+    g, a = params.geometry, params.actuation
+    return a.R / a.r_d * g.n_joints * (g.L + g.b + math.pi * g.r)
+
+
+def _encoder_problem(spec: TopicSpec, t: np.ndarray, theta: np.ndarray, params: NeckParams) -> str | None:
+    """Encoders in degrees or counts: a motor angle winding more cable than the neck holds."""
+    limit = max_motor_angle(params)
+    worst = np.abs(theta).max(axis=0) if theta.size else np.zeros(0)
+    if not (worst > limit).any():
+        return None
+    j = int(np.argmax(worst))
+    i = int(np.argmax(np.abs(theta[:, j])))
+    value = float(worst[j])
+    counts = params.sensors.encoder_counts_per_turn
+    integers = bool(np.all(theta == np.round(theta)))       # raw encoder counts are whole numbers
+    if integers and value * 2 * math.pi / counts <= limit:
+        cause = f"looks like encoder counts ({counts} per turn: {value * 2 * math.pi / counts:.4g} rad), expected rad"
+    elif value / math.degrees(1.0) <= limit:
+        cause = f"looks like degrees ({value:.6g} deg = {math.radians(value):.4g} rad), expected rad"
+    else:
+        cause = "these are not motor-shaft angles in radians (wrong column or units?)"
+    return (f"{spec.topic}: encoder theta{j + 1} reaches {float(theta[i, j]):.6g} at sample {i} (t = {float(t[i]):.6g} s): "
+            f"{cause}; R/r_d x N (L + b + pi r) = {limit:.4g} rad would wind a whole neck's height of cable")
+
+
+def _force_unit_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:
+    """Forces in kN: every commanded force below f_max / 1000 (and not all zero)."""
+    a = params.actuation
+    if not force.size:
+        return None
+    top = float(np.abs(force).max())
+    if not 0 < top <= a.f_max / 1000:
+        return None
+    return (f"{spec.topic}: every commanded force is at most {top:.4g} N ({len(t)} samples) while the record's "
+            f"f_max = {a.f_max:g} N and t_min = {a.t_min:g} N: forces look like kilonewtons, expected N")
+
+
 def _force_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:
     f_max = params.actuation.f_max
     tol = 1e-9 * f_max
@@ -303,6 +343,9 @@ def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
         problems.append(_rate_problem(spec, t, params))
     if spec.name in _ANGLE_FIELDS:
         problems.append(_angle_problem(spec, t, fields[_ANGLE_FIELDS[spec.name]], params))
+    if spec.name == "motors":
+        problems.append(_encoder_problem(spec, t, fields["theta"], params))
+        problems.append(_force_unit_problem(spec, t, fields["force"], params))
     problems = [p for p in problems if p]
     if problems:
         raise LogError(problems[0])
