@@ -590,3 +590,15 @@ def test_the_encoder_bound_holds_simulated_runs():
     corners = np.array([[s * p.geometry.alpha_max] * 3 for s in (-1, 1)])
     wound = np.abs(cable_lengths(corners, p)).max() * p.actuation.R / p.actuation.r_d
     assert 2 * wound < limit < math.degrees(wound)
+
+
+def test_a_closed_standard_output_is_an_error_not_a_silent_success(tmp_path):
+    import subprocess
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    run = subprocess.run(f"{sys.executable} -m neck_sim.cli params >&-", shell=True, cwd=root,
+                         stderr=subprocess.PIPE, text=True, timeout=60)
+    assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and "standard output is closed" in run.stderr
+    ok = subprocess.run(f"{sys.executable} -m neck_sim.cli params >/dev/null", shell=True, cwd=root,
+                        stderr=subprocess.PIPE, text=True, timeout=60)
+    assert ok.returncode == 0 and ok.stderr == ""

@@ -88,6 +88,19 @@ def probability(text: str) -> float:
     return _number(float, text, lambda v: 0 < v < 1, "a number between 0 and 1 (exclusive)")
 
 
+# -- standard output ----------------------------------------------------------------------------
+
+def closed_stdout_error(command: str) -> str | None:
+    """The one-line error for a run whose standard output is closed (``>&-``: Python then sets
+    ``sys.stdout`` to None and every print vanishes, so results would be lost with status 0);
+    None when it is open."""
+    import sys
+    if sys.stdout is not None:
+        return None
+    return (f"{command}: error: standard output is closed (started with >&-?); results would be lost: "
+            "redirect it to a file or /dev/null instead")
+
+
 # -- input and output paths, checked before any work ------------------------------------------
 
 def _same_file(a: str, b: str) -> bool:
