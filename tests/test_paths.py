@@ -602,3 +602,41 @@ def test_a_closed_standard_output_is_an_error_not_a_silent_success(tmp_path):
     ok = subprocess.run(f"{sys.executable} -m neck_sim.cli params >/dev/null", shell=True, cwd=root,
                         stderr=subprocess.PIPE, text=True, timeout=60)
     assert ok.returncode == 0 and ok.stderr == ""
+
+
+# -- silent wrong results --------------------------------------------------------------------------
+
+FORCES = 10.0 + 5.0 * np.sin(np.outer(np.arange(40) / 50.0, [1.0, 2.0, 3.0, 4.0]))
+
+
+def _truth_row(plant):
+    tr = plant.truth()
+    return np.concatenate([tr.alpha, tr.alpha_dot, tr.tension])
+
+
+def test_a_python_backend_plant_leaves_native_plants_bit_identical():
+    from neck_sim import plant as P
+    if not P.native_available():
+        pytest.skip("no C compiler: only the Python backend exists here")
+    previous = P.get_backend()
+    try:
+        P.set_backend("native")
+        alone = P.Plant(default_params(3), seed=2)
+        reference = []
+        for f in FORCES:
+            alone.step(f)
+            reference.append(_truth_row(alone))
+        del alone
+        plant = P.Plant(default_params(3), seed=2)
+        rows, slow = [], None
+        for k, f in enumerate(FORCES):
+            if k == 20:                 # a Python-backend plant appears half-way and steps in between
+                slow = P.Plant(default_params(3), seed=9, backend="python")
+            if slow is not None:
+                slow.step(np.full(4, 12.0))
+            plant.step(f)
+            rows.append(_truth_row(plant))
+        np.testing.assert_array_equal(np.array(rows), np.array(reference))
+        assert plant.backend == "native" and slow.backend == "python" and P.get_backend() == "native"
+    finally:
+        P.set_backend(previous or "auto")
