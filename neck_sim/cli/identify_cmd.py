@@ -46,11 +46,9 @@ def run(args) -> int:
         weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
-    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
+    # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27
+    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors", "camera"),
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
-    if log.camera is None:
-        raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
-                         f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
     print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
           file=sys.stderr)
     result = identify_log(log, settings, models=models)

@@ -29,7 +29,7 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, check_plausible,
+from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, check_plausible,
                                     params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
@@ -227,6 +227,8 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             if spec in required and (start is not None or end is not None) and len(samples[spec.name].t) < 2:
                 raise LogError(f"{path}: {_window_text(start, end)} holds {len(samples[spec.name].t)} sample(s) of "
                                f"{spec.topic} (at least 2 needed){_span_text(summary)}")
+            if spec in required and spec.name == "camera" and len(samples[spec.name].t) < MIN_CAMERA_FRAMES:
+                raise LogError(_few_frames_text(path, spec, len(samples[spec.name].t), start, end, params))
             fields = {f: getattr(samples[spec.name], f) for f in ("t", *spec.field_names)}
             try:
                 notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces)
@@ -234,6 +236,16 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
                 raise LogError(f"{path}: {exc}") from None
     return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
                attachments=attachments, message_counts=counts, window=(start, end), warnings=notes, **samples)
+
+
+def _few_frames_text(path, spec, frames: int, start, end, params) -> str:
+    """What is missing when a required camera topic has too few frames, and what to record."""
+    where = _window_text(start, end) if start is not None or end is not None else "the log"
+    rate = params.sensors.camera_rate_hz
+    return (f"{path}: {where} holds {frames} frame(s) of {spec.topic}: identification and diagnosis need the "
+            f"camera's joint angles through the run (at least {MIN_CAMERA_FRAMES} frames, "
+            f"{MIN_CAMERA_FRAMES / rate:.2g} s at the record's camera_rate_hz = {rate:g} Hz); record the camera "
+            "topic for the whole run")
 
 
 def _window_text(start, end) -> str:
