@@ -640,3 +640,79 @@ def test_a_python_backend_plant_leaves_native_plants_bit_identical():
         assert plant.backend == "native" and slow.backend == "python" and P.get_backend() == "native"
     finally:
         P.set_backend(previous or "auto")
+
+
+# -- stuck sensors and too little camera -----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def plant_log(tmp_path_factory):
+    """5 s of the MuJoCo plant open loop (motors, camera, truth) as per-topic arrays."""
+    from test_logs_fixtures import log_arrays, plant_run
+    path = tmp_path_factory.mktemp("plant") / "run.mcap"
+    plant_run(path, seconds=5.0, seed=4)
+    return log_arrays(read_log(path))
+
+
+def _measured_copy(arrays):
+    return {k: {f: np.array(v) for f, v in arrays[k].items()} for k in ("motors", "camera")}
+
+
+def test_a_stale_force_logger_is_refused_naming_the_cable(plant_log, tmp_path, capsys):
+    a = _measured_copy(plant_log)
+    a["motors"]["force"][:, 2] = a["motors"]["force"][0, 2]
+    path = write_log(tmp_path / "stale.mcap", a)
+    code, _, err = run_cli(["identify", path], capsys)
+    assert code == 2 and len(err.splitlines()) == 1 and str(path) in err
+    assert "force3 = " in err and "all 2500 samples" in err and "theta3 moves" in err and "stale force logger" in err
+    t = a["motors"]["t"]
+    csv = _write_motor_csv(tmp_path / "m.csv", t, a["motors"]["theta"], a["motors"]["force"])
+    code, _, err = run_cli(["import", "--motors", csv, "-o", tmp_path / "o.mcap"], capsys)
+    assert code == 2 and str(csv) in err and "stale force logger" in err
+    clean = write_log(tmp_path / "clean.mcap", _measured_copy(plant_log))     # the same log, logger working
+    assert read_log(clean).warnings == ()
+
+
+def test_a_stuck_camera_is_named_not_the_encoders(plant_log, tmp_path, capsys):
+    a = _measured_copy(plant_log)
+    a["camera"]["alpha"][:] = 0.0
+    path = write_log(tmp_path / "cam0.mcap", a)
+    for command in ("identify", "diagnose"):
+        code, _, err = run_cli([command, path], capsys)
+        assert code == 2 and len(err.splitlines()) == 1
+        assert "/neck/camera" in err and "camera is stuck" in err and "alpha = [0, 0, 0] rad" in err
+        assert "encoder" not in err
+
+
+@pytest.mark.parametrize("frames", [1, 7])
+def test_too_few_camera_frames_say_what_to_record(frames, plant_log, tmp_path, capsys):
+    a = _measured_copy(plant_log)
+    a["camera"] = {k: v[:frames] for k, v in a["camera"].items()}
+    path = write_log(tmp_path / "few.mcap", a)
+    for command in ("identify", "diagnose"):
+        code, _, err = run_cli([command, path], capsys)
+        assert code == 2 and len(err.splitlines()) == 1 and str(path) in err
+        assert f"holds {frames} frame(s) of /neck/camera" in err and "at least 8 frames" in err
+        assert "record the camera topic for the whole run" in err and "1-D time vector" not in err
+
+
+def test_negative_identified_friction_is_called_unphysical(plant_log, tmp_path):
+    """Forces frozen at their first values (defeating the stale check by a jitter of 1e-9 N) make
+    the friction regression return negative f_s: the result must say it is no result."""
+    import dataclasses
+
+    from identification.paper import IdentificationSettings, format_tables, identify_log
+    from neck_sim.logs.reader import MotorSamples
+    a = _measured_copy(plant_log)
+    base = read_log(write_log(tmp_path / "run.mcap", a))
+    settings = IdentificationSettings(reconstruct_alpha=False)
+    honest = identify_log(base, settings, models=("friction",))
+    assert np.all(honest.friction.group("f_s") > 0) and not any("UNPHYSICAL" in n for n in honest.notes)
+    frozen = np.tile(a["motors"]["force"][0], (len(a["motors"]["t"]), 1))
+    frozen[::300] += 1e-9
+    log = dataclasses.replace(base, motors=MotorSamples(t=base.motors.t, theta=base.motors.theta, force=frozen))
+    res = identify_log(log, settings, models=("friction",))
+    negative = np.flatnonzero(res.friction.group("f_s") < 0)
+    assert negative.size, res.friction.group("f_s")
+    note = [n for n in res.notes if n.startswith("UNPHYSICAL")]
+    assert len(note) == 1 and "negative friction f_s" in note[0] and f"cable {negative[0] + 1}:" in note[0]
+    assert note[0] in format_tables(res) and note[0] in res.to_dict()["notes"]
