@@ -336,8 +336,9 @@ def test_an_output_file_inside_a_report_directory_is_refused(tmp_path, log, caps
     assert code == 2 and "--json report.md" in err and "--report" in err and "its own path" in err
 
 
-def test_an_output_directory_holding_an_input_is_fine(tmp_path, log, capsys, monkeypatch):
+def test_an_output_directory_holding_an_input_is_fine(tmp_path, capsys, monkeypatch):
     reached = _no_diagnosis(monkeypatch)
+    log = write_log(tmp_path / "long.mcap", _measured(seconds=0.5))       # 15 camera frames
     with pytest.raises(reached):
         main(["diagnose", str(log), "--report", str(tmp_path), "--json", str(tmp_path / "d.json")])
 

@@ -44,6 +44,7 @@ def run(args) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from identification.report import REPORT_FILES, format_summary, write_report
     from neck_sim.logs import read_log
+    from neck_sim.logs.reader import require_camera_frames
 
     check_paths(inputs={"LOG": args.log, "--params": args.params,
                         "--model": args.model if os.path.isfile(args.model) else None},
@@ -58,6 +59,7 @@ def run(args) -> int:
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
                    require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
+    require_camera_frames(log)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
           f"model: {model.describe()}", file=sys.stderr)
     if params is not None and params.n_joints != log.n_joints:

@@ -39,6 +39,7 @@ def run(args) -> int:
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
     from neck_sim.logs import read_log
+    from neck_sim.logs.reader import require_camera_frames
     from neck_sim.atomic import atomic_write_json
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
@@ -49,6 +50,7 @@ def run(args) -> int:
     # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27
     log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors", "camera"),
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
+    require_camera_frames(log)
     print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
           file=sys.stderr)
     result = identify_log(log, settings, models=models)

@@ -33,7 +33,7 @@ from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, 
                                     params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
-__all__ = ["read_log", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
+__all__ = ["read_log", "require_camera_frames", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
            "TruthSamples"]
 
 _MAGIC = b"\x89MCAP0\r\n"
@@ -227,8 +227,6 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             if spec in required and (start is not None or end is not None) and len(samples[spec.name].t) < 2:
                 raise LogError(f"{path}: {_window_text(start, end)} holds {len(samples[spec.name].t)} sample(s) of "
                                f"{spec.topic} (at least 2 needed){_span_text(summary)}")
-            if spec in required and spec.name == "camera" and len(samples[spec.name].t) < MIN_CAMERA_FRAMES:
-                raise LogError(_few_frames_text(path, spec, len(samples[spec.name].t), start, end, params))
             fields = {f: getattr(samples[spec.name], f) for f in ("t", *spec.field_names)}
             try:
                 notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces)
@@ -238,14 +236,19 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
                attachments=attachments, message_counts=counts, window=(start, end), warnings=notes, **samples)
 
 
-def _few_frames_text(path, spec, frames: int, start, end, params) -> str:
-    """What is missing when a required camera topic has too few frames, and what to record."""
+def require_camera_frames(log: "Log", minimum: int = MIN_CAMERA_FRAMES) -> None:
+    """LogError saying what is missing and what to record when ``log`` (its window) holds fewer than
+    ``minimum`` camera frames: identification and diagnosis need the joint angles through the run."""
+    frames = 0 if log.camera is None else len(log.camera.t)
+    if frames >= minimum:
+        return
+    start, end = log.window
     where = _window_text(start, end) if start is not None or end is not None else "the log"
-    rate = params.sensors.camera_rate_hz
-    return (f"{path}: {where} holds {frames} frame(s) of {spec.topic}: identification and diagnosis need the "
-            f"camera's joint angles through the run (at least {MIN_CAMERA_FRAMES} frames, "
-            f"{MIN_CAMERA_FRAMES / rate:.2g} s at the record's camera_rate_hz = {rate:g} Hz); record the camera "
-            "topic for the whole run")
+    rate = log.params.sensors.camera_rate_hz
+    raise LogError(f"{log.path}: {where} holds {frames} frame(s) of /neck/camera: identification and diagnosis "
+                   f"need the camera's joint angles through the run (at least {minimum} frames, "
+                   f"{minimum / rate:.2g} s at the record's camera_rate_hz = {rate:g} Hz); record the camera "
+                   "topic for the whole run")
 
 
 def _window_text(start, end) -> str:
