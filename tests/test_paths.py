@@ -484,8 +484,10 @@ def test_a_neck_with_a_long_bar_reads_its_own_log_back(tmp_path):
 
 
 @pytest.mark.parametrize("option", ["--start", "--end"])
-def test_huge_window_bounds_are_a_window_not_a_traceback(option, log, capsys, monkeypatch):
+def test_huge_window_bounds_are_a_window_not_a_traceback(option, tmp_path, capsys, monkeypatch):
     import identification.paper
+
+    log = write_log(tmp_path / "long.mcap", _measured(seconds=0.5))
 
     seen = {}
 
