@@ -47,7 +47,7 @@ def run(args) -> int:
     from neck_sim.logs.reader import require_camera_frames
 
     check_paths(inputs={"LOG": args.log, "--params": args.params,
-                        "--model": args.model if os.path.isfile(args.model) else None},
+                        "--model": args.model if os.path.exists(args.model) else None},
                 files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report},
                 contents={"--report": REPORT_FILES})
     model = parse_model(args.model)              # fail early on a bad --model
