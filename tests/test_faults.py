@@ -75,8 +75,8 @@ CLASSES = {
                                        "(all cases)"),
     "output path kinds": ("output path (`params -o`, also with `--load`)",
                           "new, regular (mode kept), symlink to a regular file, dangling symlink, 245-character "
-                          "name: written; FIFO, socket, copy of /dev/null, /dev/full, symlink to a FIFO or to "
-                          "/proc/self/fd/N of a pipe, directory, read-only file, 256-character name, the input "
+                          "name: written; FIFO, socket, copy of /dev/null, /dev/full, symlink to /dev/full, to a "
+                          "FIFO or to /proc/self/fd/N of a pipe, directory, read-only file, 256-character name, the input "
                           "itself: refused and left as they were"),
     "input path kinds": ("input path (LOG, `--params`, `--motors`, `--camera`, `--load`, `--model`)",
                          "FIFO, socket, copy of /dev/null, symlink to a FIFO: refused at once (no blocking open)"),
@@ -519,7 +519,8 @@ def bounded(seconds=10):
         signal.signal(signal.SIGALRM, previous)
 
 
-SPECIAL_KINDS = ("fifo", "socket", "null copy", "/dev/full", "link to fifo", "link to a pipe fd", "directory")
+SPECIAL_KINDS = ("fifo", "socket", "null copy", "/dev/full", "link to /dev/full", "link to fifo", "link to a pipe fd",
+                 "directory")
 REGULAR_KINDS = ("new", "regular", "link to regular", "dangling link", "long name")
 REFUSED_KINDS = ("read-only", "too long", "same as input")
 
@@ -542,10 +543,12 @@ def make_path(kind: str, folder, keep: list, name="out.json"):
     elif kind == "dangling link":
         os.symlink(folder / "later.json", path)
     elif kind in ("fifo", "link to fifo"):
-        os.mkfifo(folder / "fifo")
+        os.mkfifo(folder / "fifo.json")
         if kind == "fifo":
-            return folder / "fifo"
-        os.symlink(folder / "fifo", path)
+            return folder / "fifo.json"
+        os.symlink(folder / "fifo.json", path)
+    elif kind == "link to /dev/full":
+        os.symlink("/dev/full", path)
     elif kind == "socket":
         s = socket.socket(socket.AF_UNIX)
         s.bind(str(path))
