@@ -104,8 +104,9 @@ def output_refusal(path: str | os.PathLike) -> str | None:
     if kind is not None:
         return f"it is {kind}, not a regular file; refusing to replace it"
     name_max = _name_max(os.path.dirname(os.path.abspath(target)))
-    if len(os.fsencode(os.path.basename(target))) > name_max:
-        return f"the file name is too long ({len(os.fsencode(os.path.basename(target)))} bytes; the limit is {name_max})"
+    name_bytes = len(os.fsencode(os.path.basename(target)))
+    if name_bytes > name_max:
+        return f"the file name is too long ({name_bytes} bytes; the limit is {name_max})"
     try:
         st = os.stat(target)
     except OSError:

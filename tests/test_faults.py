@@ -23,12 +23,10 @@ full run of this file writes the table of ``docs/reliability.md`` (atomically).
 from __future__ import annotations
 
 import collections
-import contextlib
 import json
 import math
 import os
 import shutil
-import signal
 import socket
 import stat
 
@@ -36,6 +34,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from blocking import bounded
 from test_logs_fixtures import simulated_run, write_raw
 
 from neck_sim import params as P
@@ -75,9 +74,9 @@ CLASSES = {
                                        "(all cases)"),
     "output path kinds": ("output path (`params -o`, also with `--load`)",
                           "new, regular (mode kept), symlink to a regular file, dangling symlink, 245-character "
-                          "name: written; FIFO, socket, copy of /dev/null, /dev/full, symlink to /dev/full, to a "
-                          "FIFO or to /proc/self/fd/N of a pipe, directory, read-only file, 256-character name, the input "
-                          "itself: refused and left as they were"),
+                          "name: written; FIFO, socket, copy of /dev/null, /dev/full, symlink to /dev/full, "
+                          "to a FIFO or to /proc/self/fd/N of a pipe, directory, read-only file, 256-character "
+                          "name, the input itself: refused and left as they were"),
     "input path kinds": ("input path (LOG, `--params`, `--motors`, `--camera`, `--load`, `--model`)",
                          "FIFO, socket, copy of /dev/null, symlink to a FIFO: refused at once (no blocking open)"),
     "unit mistakes": ("motors/camera CSV (`import`), MCAP log (reader), parameter file",
@@ -504,20 +503,6 @@ def test_parameters_of_the_wrong_type(tmp_path, capsys):
 
 
 # -- round two: the kind of path a command is given ------------------------------------------------
-
-@contextlib.contextmanager
-def bounded(seconds=10):
-    """Fail instead of hanging when the body blocks (a FIFO opened for reading waits for a writer)."""
-    def alarm(signum, frame):
-        raise TimeoutError(f"blocked for more than {seconds} s")
-    previous = signal.signal(signal.SIGALRM, alarm)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
-
 
 SPECIAL_KINDS = ("fifo", "socket", "null copy", "/dev/full", "link to /dev/full", "link to fifo", "link to a pipe fd",
                  "directory")

@@ -10,9 +10,12 @@ import json
 import math
 import os
 import signal
+import socket as _socket
+import stat
 
 import numpy as np
 import pytest
+from blocking import bounded
 from test_logs_fixtures import synthetic_arrays, write_arrays
 
 from neck_sim.atomic import TEMP_PREFIX, atomic_write_json
@@ -284,25 +287,6 @@ def test_plausible_logs_and_angles_near_the_joint_limit_pass(tmp_path):
 
 
 # -- output and input path kinds: only regular files are written or read -------------------------
-
-import stat  # noqa: E402
-import socket as _socket  # noqa: E402
-import contextlib  # noqa: E402
-
-
-@contextlib.contextmanager
-def bounded(seconds=10):
-    """Fail (instead of hanging the suite) when the body blocks longer than ``seconds``."""
-    def alarm(signum, frame):
-        raise TimeoutError(f"blocked for more than {seconds} s")
-    previous = signal.signal(signal.SIGALRM, alarm)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
-
 
 def _no_diagnosis(monkeypatch):
     import identification.diagnosis

@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import (add_implausible_params_argument, add_force_range_argument, check_paths, load_params_file, nonnegative_float,
-                                 positive_int, probability)
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_paths,
+                                 load_params_file, nonnegative_float, positive_int, probability)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import os
 
-from neck_sim.cli.common import add_implausible_params_argument, add_force_range_argument, check_paths, load_params_file, nonnegative_float
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_paths,
+                                 load_params_file, nonnegative_float)
 
 HELP = "re-simulate a log open loop from its initial state and commanded forces; report the drift"
 

@@ -293,8 +293,9 @@ def _encoder_problem(spec: TopicSpec, t: np.ndarray, theta: np.ndarray, params: 
         cause = f"looks like degrees ({value:.6g} deg = {math.radians(value):.4g} rad), expected rad"
     else:
         cause = "these are not motor-shaft angles in radians (wrong column or units?)"
-    return (f"{spec.topic}: encoder theta{j + 1} reaches {float(theta[i, j]):.6g} at sample {i} (t = {float(t[i]):.6g} s): "
-            f"{cause}; R/r_d x N (L + b + pi r) = {limit:.4g} rad would wind a whole neck's height of cable")
+    return (f"{spec.topic}: encoder theta{j + 1} reaches {float(theta[i, j]):.6g} at sample {i} "
+            f"(t = {float(t[i]):.6g} s): {cause}; R/r_d x N (L + b + pi r) = {limit:.4g} rad would wind a whole "
+            "neck's height of cable")
 
 
 def _force_unit_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:

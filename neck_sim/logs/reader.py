@@ -29,11 +29,12 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, check_plausible,
-                                    params_from_metadata, resolve_topic)
+from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec,
+                                    check_plausible, params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
-__all__ = ["read_log", "require_camera_frames", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
+__all__ = ["read_log", "require_camera_frames",
+           "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
            "TruthSamples"]
 
 _MAGIC = b"\x89MCAP0\r\n"
