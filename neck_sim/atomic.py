@@ -39,6 +39,8 @@ TEMP_PREFIX = ".neck-sim-tmp-"
 _HOST = re.sub(r"[^A-Za-z0-9_.]", "_", socket.gethostname())[:40] or "host"
 _STALE = re.compile(re.escape(TEMP_PREFIX) + r"(?P<host>.+)-(?P<pid>\d+)-[^-]+-")
 _swept: set[str] = set()
+_SPECIAL_TREES = ("/proc/", "/dev/", "/sys/")   # kernel file systems: nothing there is an output file ...
+_REGULAR_TREES = ("/dev/shm/",)                  # ... but shared memory, a tmpfs of regular files
 _NAME_IN_TEMP = 32        # characters of the target's name kept in the temporary name
 _KINDS = {stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device", stat.S_IFIFO: "a FIFO (named pipe)",
           stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a directory"}
@@ -82,6 +84,20 @@ def _name_max(directory: str) -> int:
         return 255
 
 
+def _special_hop(path: str | os.PathLike) -> str | None:
+    """The first name in ``path``'s chain of symlinks inside /proc, /dev or /sys, or None.  (The
+    kernel resolves /proc/self/fd/N of a redirected stdout to the regular file behind it, so the
+    kind of the end of the chain does not tell.)"""
+    p = os.path.abspath(path)
+    for _ in range(40):
+        if p.startswith(_SPECIAL_TREES) and not p.startswith(_REGULAR_TREES):
+            return p
+        if not os.path.islink(p):
+            return None
+        p = os.path.abspath(os.path.join(os.path.dirname(p), os.readlink(p)))
+    return None
+
+
 def output_target(path: str | os.PathLike) -> str:
     """The file an output ``path`` is written to: ``path`` itself or, for a symlink, the file it
     names (the link stays a link)."""
@@ -103,6 +119,9 @@ def output_refusal(path: str | os.PathLike) -> str | None:
         return "it is a directory"
     if kind is not None:
         return f"it is {kind}, not a regular file; refusing to replace it"
+    special = _special_hop(path)                # /proc/self/fd/1 of a redirected stdout, /dev/stdout, ...
+    if special is not None:
+        return f"it leads to {special}, a special file, not a regular file; refusing to replace it"
     name_max = _name_max(os.path.dirname(os.path.abspath(target)))
     name_bytes = len(os.fsencode(os.path.basename(target)))
     if name_bytes > name_max:

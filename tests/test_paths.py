@@ -423,6 +423,21 @@ def test_inputs_that_are_not_regular_files_are_refused_without_blocking(kind, op
             k.close() if hasattr(k, "close") else os.close(k)
 
 
+def test_a_link_to_a_redirected_standard_output_is_refused(tmp_path, capsys):
+    """/proc/self/fd/N of a stdout redirected to a file resolves to that regular file: replacing it
+    would cut the command's own output off, so links into /proc (and /dev) are refused."""
+    redirected = tmp_path / "stdout.txt"
+    fd = os.open(redirected, os.O_WRONLY | os.O_CREAT, 0o644)
+    try:
+        link = tmp_path / "out.json"
+        os.symlink(f"/proc/self/fd/{fd}", link)
+        code, _, err = run_cli(["params", "-o", link], capsys)
+        assert code == 2 and f"-o {link}" in err and "special file" in err
+        assert redirected.read_text() == "" and os.path.islink(link)
+    finally:
+        os.close(fd)
+
+
 def test_a_symlink_to_a_regular_output_is_written_through(tmp_path, capsys):
     target = tmp_path / "real.json"
     target.write_text("{}")
