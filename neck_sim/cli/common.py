@@ -168,8 +168,7 @@ def check_paths(inputs: dict | None = None, files: dict | None = None, dirs: dic
         seen.append((opt, path))
         reason = output_refusal(path)
         if reason is not None:
-            raise ValueError(f"{opt} {path}: {reason.removeprefix('it ')}" if reason.startswith("it is ")
-                             else f"{opt} {path}: {reason}")
+            raise ValueError(f"{opt} {path}: {reason.removeprefix('it ')}")
         if inside:
             continue
         parent = os.path.dirname(os.path.abspath(path))
