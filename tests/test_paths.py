@@ -672,6 +672,9 @@ def test_a_stale_force_logger_is_refused_naming_the_cable(plant_log, tmp_path, c
     assert code == 2 and str(csv) in err and "stale force logger" in err
     clean = write_log(tmp_path / "clean.mcap", _measured_copy(plant_log))     # the same log, logger working
     assert read_log(clean).warnings == ()
+    # a simulated log (with /neck/truth) holds what neck-sim commanded: a constant action is no logger fault
+    simulated = write_log(tmp_path / "sim.mcap", {**a, "truth": plant_log["truth"]})
+    assert np.all(read_log(simulated).motors.force[:, 2] == a["motors"]["force"][0, 2])
 
 
 def test_a_stuck_camera_is_named_not_the_encoders(plant_log, tmp_path, capsys):

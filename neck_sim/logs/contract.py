@@ -366,7 +366,7 @@ def _stuck_camera_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, par
 
 
 def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
-                    accept_out_of_range_forces: bool = False) -> tuple[str, ...]:
+                    accept_out_of_range_forces: bool = False, simulated: bool = False) -> tuple[str, ...]:
     """Compare a measured topic with the ``neck`` record: sample rates (motors, camera), joint
     angles within |alpha| <= alpha_max + 0.1 rad (camera, reference), commanded forces in
     [0, f_max] (motors); units (encoders in degrees or counts, forces in kN); stuck sensors (a
@@ -374,7 +374,9 @@ def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
     all identical).
 
     ``fields``: ``t`` (T,) s and the topic's (T, n) arrays.  Raises LogError naming the topic, the
-    sample and the likely cause (times in ms, angles in degrees, ...).  With
+    sample and the likely cause (times in ms, angles in degrees, ...).  ``simulated`` (the log has
+    /neck/truth): no stuck-sensor checks, its forces are what neck-sim commanded (an environment
+    may hold an action constant), not a logger's record.  With
     ``accept_out_of_range_forces`` an out-of-range force is returned as a warning instead.
     """
     t = fields["t"]
@@ -383,9 +385,9 @@ def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
         problems.append(_rate_problem(spec, t, params))
     if spec.name in _ANGLE_FIELDS:
         problems.append(_angle_problem(spec, t, fields[_ANGLE_FIELDS[spec.name]], params))
-    if spec.name == "camera":
+    if spec.name == "camera" and not simulated:
         problems.append(_stuck_camera_problem(spec, t, fields["alpha"], params))
-    if spec.name == "motors":
+    if spec.name == "motors" and not simulated:
         problems.append(_stale_force_problem(spec, t, fields["theta"], fields["force"], params))
         problems.append(_encoder_problem(spec, t, fields["theta"], params))
         problems.append(_force_unit_problem(spec, t, fields["force"], params))

@@ -29,8 +29,8 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec,
-                                    check_plausible, params_from_metadata, resolve_topic)
+from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TOPICS, LogError,
+                                    TopicSpec, check_plausible, params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
 __all__ = ["read_log", "require_camera_frames",
@@ -230,7 +230,8 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
                                f"{spec.topic} (at least 2 needed){_span_text(summary)}")
             fields = {f: getattr(samples[spec.name], f) for f in ("t", *spec.field_names)}
             try:
-                notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces)
+                notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces,
+                                         simulated=TOPIC_BY_NAME["truth"].topic in channels)
             except LogError as exc:
                 raise LogError(f"{path}: {exc}") from None
     return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
