@@ -17,7 +17,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
     parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
     parser.add_argument("--models", default="friction,elastic,variable",
-                        help="comma-separated subset of friction,elastic,variable (default: all)")
+                        help="comma-separated subset of friction,elastic,variable (default: %(default)s, all three)")
     parser.add_argument("--motor-cutoff", type=positive_float, default=None, metavar="HZ",
                         help="Butterworth cutoff for encoders and forces (default: residual analysis)")
     parser.add_argument("--camera-cutoff", type=positive_float, default=None, metavar="HZ",
