@@ -700,6 +700,18 @@ def test_too_few_camera_frames_say_what_to_record(frames, plant_log, tmp_path, c
         assert "record the camera topic for the whole run" in err and "1-D time vector" not in err
 
 
+def test_an_empty_camera_topic_says_it_holds_nothing(tmp_path, capsys):
+    from test_logs_fixtures import motors_messages, write_raw
+    t = np.arange(600) / 500
+    motors = motors_messages(4, t, theta=[[0.0] * 4] * 600, force=[[10.0] * 4] * 600)
+    path = tmp_path / "empty.mcap"
+    write_raw(path, default_params(3), {"/neck/motors": motors, "/neck/camera": []})
+    for command in ("identify", "diagnose"):
+        code, _, err = run_cli([command, path], capsys)
+        assert code == 2 and len(err.splitlines()) == 1 and str(path) in err
+        assert "/neck/camera" in err and "holds no messages" in err and "record it for the whole run" in err
+
+
 def test_negative_identified_friction_is_called_unphysical(plant_log, tmp_path):
     """Forces frozen at their first values (defeating the stale check by a jitter of 1e-9 N) make
     the friction regression return negative f_s: the result must say it is no result."""

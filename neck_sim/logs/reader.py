@@ -207,8 +207,11 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             channels = {topic: None for topic in payloads}
             counts = {topic: len(data) for topic, (_, data) in payloads.items()}
         for spec in required:
-            if spec.topic not in channels or counts.get(spec.topic, 1) == 0:
+            if spec.topic not in channels:
                 raise LogError(f"{path}: missing required topic {spec.topic} ({spec.description})")
+            if counts.get(spec.topic, 1) == 0:
+                raise LogError(f"{path}: the required topic {spec.topic} ({spec.description}) is in the log but "
+                               "holds no messages: its recorder wrote nothing; record it for the whole run")
         present = [s for s in wanted if s.topic in channels]
         for spec in present:
             ch = channels[spec.topic]
