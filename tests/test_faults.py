@@ -155,7 +155,8 @@ a closed standard output, an environment dropped without `close()`, a neck with 
 L = 0.2 m reading its own log back, a Python-backend plant beside native plants (bit-identical),
 the plausibility checks (ms, µs, camera rate, degrees, counts, kN, negative forces, 1e6 N spikes,
 accepted forces reported, replay's clipping note, parameter files in mm/g/10 g), stale forces, a
-stuck camera, too few camera frames and negative identified friction reported as unphysical.
+stuck camera, an empty camera topic, too few camera frames and negative identified friction reported
+as unphysical.
 
 To regenerate this page:
 
