@@ -76,7 +76,7 @@ def physics_loop(plant, f):
 
     def run():
         plant.reset(np.zeros(plant.n_joints))
-        prev = P._DISPATCH.enter()
+        prev = P._DISPATCH.enter(plant.backend)
         try:
             for fk in f:
                 d.ctrl[:n1] = fk
@@ -95,7 +95,7 @@ def native_loop(plant, f):
 
     def run():
         plant.reset(np.zeros(plant.n_joints))
-        prev = P._DISPATCH.enter()
+        prev = P._DISPATCH.enter(plant.backend)
         try:
             for fk in f:
                 solo.forces[0] = fk

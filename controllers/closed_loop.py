@@ -394,7 +394,7 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             if fused:
                 # the quiet periods in one call, and the next one (an event) recorded and controlled
                 quiet = min(batch.quiet_periods(), steps - k, _MAX_FUSED)
-                previous = _DISPATCH.enter() if quiet else None
+                previous = _DISPATCH.enter("native") if quiet else None     # quiet periods: native only
                 try:
                     k_end, stage, fatal = _run_periods(k, k + quiet, int(k + quiet < steps), *kernel_args)
                 finally:

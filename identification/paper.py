@@ -248,6 +248,7 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         variable = solve_weighted(*reg.variable_stiffness_model(prep, params, f_s, taut=taut))
     if "friction" not in models:
         friction = None
+    notes += _unphysical_notes({"(44),(45)": elastic, "(46),(47)": friction, "Table 2": variable})
 
     torque_error, series = _torque_errors(prep, params, dyn, f_s)
     t_rhs = reg.tension_from_forces(prep, params, f_s)
@@ -275,6 +276,27 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         series.update(a_series)
     return IdentificationResult(friction, elastic, variable, torque_error, tension_error, alpha_error,
                                 taut.mean(axis=0), prep, s, series, tuple(notes), params)
+
+
+def _unphysical_notes(results: dict) -> list[str]:
+    """A note for every identified friction f_s or stiffness k below zero: friction opposes motion
+    (eq 37, f_s >= 0) and a cable pulls harder when stretched (eq 54, k > 0), so such a value is
+    no result; it says the data do not hold this model (stale forces, too little motion, ...)."""
+    notes = []
+    for label, res in results.items():
+        if res is None:
+            continue
+        for name, what in (("f_s", "friction"), ("k", "stiffness")):
+            if not any(n.split("(")[0] == name for n in res.names):
+                continue
+            values = np.asarray(res.group(name), dtype=float)
+            bad = np.flatnonzero(values < 0)
+            if bad.size:
+                listed = ", ".join(f"cable {j + 1}: {values[j]:.4g}" for j in bad)
+                notes.append(f"UNPHYSICAL: identification with {label} gives a negative {what} {name} ({listed}); "
+                             f"{what} cannot be negative, so the data do not support this model (stale or "
+                             "stuck force logging? too little motion?): do not use these values")
+    return notes
 
 
 def identify_log(log, settings: IdentificationSettings | None = None, *, params: NeckParams | None = None,

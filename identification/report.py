@@ -415,6 +415,11 @@ def _markdown(diag, figures: dict) -> str:
     return "\n".join(L)
 
 
+# the files write_report puts into its directory (the CLI checks them against the other outputs)
+REPORT_FILES = ("report.md", "model.json", "residuals_torque.png", "residuals_cable.png", "candidates.png",
+                f"{UNEXPLAINED}.png", "alpha_hat.png", "resimulation.png")
+
+
 def write_report(diag, directory) -> list[str]:
     """Write ``report.md``, the figures and ``model.json`` into ``directory``; returns the paths."""
     import matplotlib

@@ -14,7 +14,14 @@ of the paper's model are recomputed with :mod:`neck_sim.analytic`:
    sides are compared as 20 ms moving averages: a moving average of a central difference is a
    change of momentum over the window, exact up to the variation of M_m, so the comparison
    needs no filter.  Tolerance per joint 0.005 N m + 3 % of the largest |Z t| of that joint
-   (measured: 0.2 % in a closed-loop run, 2 % in a violent open-loop run with slack cables).
+   (measured: 0.2 % in a closed-loop run, 2 % in a violent open-loop run with slack cables)
+   + 0.6 % of the joint's largest gross cable torque sum_i |Z_ji| t_i.  The last term is for fast
+   moves: the plant's implicit integration and soft loop closures differ from the continuous
+   eq (30) by a fraction of each cable's torque, not of their net, and fast moves are made with
+   high co-contraction (all four cables near f_max, a net |Z t| 50-100 times smaller than the
+   gross).  Measured, largest disagreement over the largest gross torque of the same joint, in
+   closed-loop control tests: 0.30 % at ``--duration-scale 0.1``, 0.22 % at 0.2, 0.01 % at 1
+   (the first two exceeded the net-only tolerance, up to 1.8x, and failed honest logs).
 3. ``elongation sign``: tension-only cables (eq 54) pull only when stretched: no sample may have
    tension > 0 with elongation <= 0 (tolerance 0).  With rigid cables the elongation must stay
    within the tolerance of relation 1 instead.
@@ -36,11 +43,12 @@ from neck_sim.logs import Log, read_log
 from neck_sim.params import NeckParams, from_dict
 
 __all__ = ["Relation", "CheckResult", "check_log", "LENGTH_TOLERANCE", "TORQUE_TOLERANCE_ABS",
-           "TORQUE_TOLERANCE_REL", "TORQUE_WINDOW"]
+           "TORQUE_TOLERANCE_REL", "TORQUE_TOLERANCE_GROSS", "TORQUE_WINDOW"]
 
 LENGTH_TOLERANCE = 2e-4          # m, plus half an encoder count along the cable
 TORQUE_TOLERANCE_ABS = 0.005     # N m
 TORQUE_TOLERANCE_REL = 0.03      # of the joint's largest |Z t|
+TORQUE_TOLERANCE_GROSS = 0.006   # of the joint's largest gross torque sum_i |Z_ji| t_i (fast moves)
 TORQUE_WINDOW = 0.02             # s, moving-average window of relation 2
 
 
@@ -137,14 +145,17 @@ def check_log(log: Log | str) -> CheckResult:
     # 2. joint torques, as moving averages of both sides (changes of momentum over the window)
     alpha_ddot = np.gradient(alpha_dot, t, axis=0)
     lk = linkage_dynamics(alpha, alpha_dot, params)
-    z_t = np.einsum("tij,tj->ti", transmission_matrix(alpha, params), tension)
+    z = transmission_matrix(alpha, params)
+    z_t = np.einsum("tij,tj->ti", z, tension)
+    gross = np.einsum("tij,tj->ti", np.abs(z), np.abs(tension))
     residual = (z_t - (np.einsum("tij,tj->ti", lk.M, alpha_ddot) + lk.c + lk.g))[1:-1]
     dt = float(np.median(np.diff(t)))
     w = max(1, min(len(residual), int(round(TORQUE_WINDOW / dt)) + 1))
     kernel = np.ones(w) / w
     smooth = np.stack([np.convolve(residual[:, j], kernel, mode="valid") for j in range(residual.shape[1])], 1)
     t_mid = t[1:-1][w // 2: w // 2 + len(smooth)]
-    tol2 = TORQUE_TOLERANCE_ABS + TORQUE_TOLERANCE_REL * np.abs(z_t).max(axis=0)
+    tol2 = (TORQUE_TOLERANCE_ABS + TORQUE_TOLERANCE_REL * np.abs(z_t).max(axis=0)
+            + TORQUE_TOLERANCE_GROSS * gross.max(axis=0))
     rel2 = _worst(smooth, tol2, t_mid, "joint torques",
                   f"Z t vs M_m alpha_ddot + c_m + g ({w}-sample means)", "N m", 0.0)
     rel2 = Relation(**{**asdict(rel2), "tolerance": float(tol2[rel2.index])})

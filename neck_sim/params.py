@@ -624,21 +624,26 @@ class NeckParams:
         return default_params(n_joints)
 
     def replace(self, **groups_or_fields) -> "NeckParams":
-        """Copy with whole groups replaced (``geometry=...``) or dotted fields (``**{"geometry.r": 0}``)."""
+        """Copy with whole groups replaced (``geometry=...``) or dotted fields (``**{"geometry.r": 0}``).
+
+        Each group is validated once, with all its changed fields set: the order of the changes
+        does not matter (b = 0.12 m then L = 0.2 m is as valid as L then b)."""
         groups = {name: getattr(self, name) for name in _GROUPS}
+        fields_by_group: dict[str, dict[str, Any]] = {}
         for key, value in groups_or_fields.items():
             if "." in key:
                 grp, fld = key.split(".", 1)
                 if grp not in groups:
                     raise ParameterError(f"{key}: unknown group {grp!r}")
-                try:
-                    groups[grp] = dataclasses.replace(groups[grp], **{fld: value})
-                except TypeError:
-                    raise ParameterError(f"{key}: unknown field") from None
+                if fld not in {f.name for f in fields(groups[grp])}:
+                    raise ParameterError(f"{key}: unknown field")
+                fields_by_group.setdefault(grp, {})[fld] = value
             elif key in groups:
                 groups[key] = value
             else:
                 raise ParameterError(f"{key}: unknown parameter group")
+        for grp, changes in fields_by_group.items():
+            groups[grp] = dataclasses.replace(groups[grp], **changes)
         return NeckParams(**groups)
 
 
@@ -729,8 +734,49 @@ def save(params: NeckParams, path: str | os.PathLike) -> None:
     atomic_write_bytes(path, payload)
 
 
-def load(path: str | os.PathLike) -> NeckParams:
-    """Load a ``.json`` or ``.toml`` parameter file; fields it omits take the defaults."""
+# -- plausibility of a parameter file: unit mistakes that pass every range check ----------------
+# Thresholds sit far above any neck this testbed models (bars of 0.05-0.1 m, masses of 20-25 g)
+# and far below what the same values in the wrong unit give (50 mm -> 50 "m", 20 g -> 20 "kg").
+EARTH_GRAVITY = 9.81          # m/s^2, standard gravity (the default of Inertia.gravity)
+_MAX_LENGTH_M = 5.0           # a length above this in a parameter file reads as millimetres
+_MAX_MASS_KG = 10.0           # a mass above this reads as grams
+_MAX_GRAVITY = 25.0           # m/s^2; Jupiter's surface is 24.8
+
+
+def implausible_values(data: "NeckParams | Mapping[str, Any]") -> list[str]:
+    """One sentence per value whose magnitude points to a unit mistake (mm for m, g for kg) or an
+    unphysical gravity; empty when all are plausible.  ``data``: parameters or the nested dict of a
+    parameter file (checked before the values are built, so a unit mistake is named before the
+    range checks it would trip)."""
+    if isinstance(data, NeckParams):
+        data = to_dict(data)
+
+    def value(name):
+        grp, fld = name.split(".")
+        group = data.get(grp)
+        v = group.get(fld) if isinstance(group, Mapping) else None
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
+
+    found = []
+    for name in ("geometry.b", "geometry.L", "geometry.r", "springs.rest_length", "actuation.r_d"):
+        v = value(name)
+        if v is not None and v > _MAX_LENGTH_M:
+            found.append(f"{name} = {v:g} m looks like millimetres (expected metres: {v / 1000:g} m?)")
+    for name in ("inertia.bar_mass", "inertia.diagonal_mass", "inertia.payload_mass"):
+        v = value(name)
+        if v is not None and v > _MAX_MASS_KG:
+            found.append(f"{name} = {v:g} kg looks like grams (expected kilograms: {v / 1000:g} kg?)")
+    g = value("inertia.gravity")
+    if g is not None and g > _MAX_GRAVITY:
+        found.append(f"inertia.gravity = {g:g} m/s^2 is {g / EARTH_GRAVITY:.3g}x Earth's ({EARTH_GRAVITY} m/s^2)")
+    return found
+
+
+def load(path: str | os.PathLike, *, accept_implausible: bool = False) -> NeckParams:
+    """Load a ``.json`` or ``.toml`` parameter file; fields it omits take the defaults.
+
+    Values :func:`implausible_values` names (a length in mm, a mass in g, gravity 10x Earth's)
+    raise ParameterError unless ``accept_implausible``."""
     path = os.fspath(path)
     try:
         with open(path, "rb") as fh:
@@ -749,6 +795,9 @@ def load(path: str | os.PathLike) -> NeckParams:
     if not data:
         raise ParameterError(f"{path}: the parameter file is empty (it would silently mean the defaults; "
                              "write `neck-sim params -o FILE` to start from them, or leave --params out)")
+    found = implausible_values(data) if isinstance(data, Mapping) else []
+    if found and not accept_implausible:
+        raise ParameterError(f"{path}: {'; '.join(found)}; use --accept-implausible-params if intended")
     return from_dict(data)
 
 

@@ -25,7 +25,9 @@ Forces (sign convention of :mod:`neck_sim.analytic.cables`)
 
 Callbacks are process-global in MuJoCo.  The callback is registered once and dispatches by
 ``mjModel`` address: models that belong to no live :class:`Plant` are left untouched (a plain
-MuJoCo model keeps working), and each plant sees only its own parameters.  The callback is the C
+MuJoCo model keeps working), and each plant sees only its own parameters.  Each plant keeps the
+backend it was made with: a Python-backend plant in the process leaves native plants
+bit-identical.  The callback is the C
 file ``neck_sim/native/plant_callback.c``, compiled at first use by :mod:`neck_sim.native` into a
 cache (``$NECK_SIM_CACHE`` or ``~/.cache/neck_sim``); when no compiler is available a pure-Python
 callback with the same physics takes over (``set_backend``), 6-8x slower per control period.
@@ -113,25 +115,28 @@ def _route_mujoco_warnings() -> None:
 
 
 class _Dispatch:
-    """Process-wide owner of MuJoCo's mjcb_control: which backend, which plants.
+    """Process-wide owner of MuJoCo's mjcb_control: the default backend and the plants.
 
-    Native: the C callback is installed for good; it looks the model up among the registered
-    plants and returns at once for any other model (a plain model keeps working).  Python: a
-    Python mjcb_control breaks compiling any model (MuJoCo runs it on a temporary mjData), so it
-    is installed only while a plant steps (``enter``/``leave``).
+    Each plant keeps the backend it was made with, so a Python-backend plant alive in the process
+    changes nothing for native plants (their results stay bit-identical).  Native: the C callback
+    stays installed; it looks the model up among the registered plants and returns at once for any
+    other model (a plain model keeps working).  Python: a Python mjcb_control breaks compiling any
+    model (MuJoCo runs it on a temporary mjData), so it is installed only while a Python-backend
+    plant steps (``enter``/``leave``, which put back whatever callback was installed before).
     """
 
     def __init__(self):
         self.lib: ctypes.CDLL | None = None
         self.native_error: str | None = None
-        self.backend: str | None = None
-        self.callback = None                      # the object handed to set_mjcb_control
+        self.backend: str | None = None           # the default of plants made without a backend
+        self.native_cb = None                     # the C callback object handed to set_mjcb_control
         self.plants: dict[int, weakref.ref] = {}  # model address -> plant
 
     def native(self) -> ctypes.CDLL | None:
         if self.lib is None and self.native_error is None:
             try:
                 self.lib = native.build()
+                self.native_cb = self.lib.neck_control
             except NativeBuildError as exc:
                 self.native_error = str(exc)
         return self.lib
@@ -150,83 +155,86 @@ class _Dispatch:
         return "native" if backend == "auto" else backend
 
     def set_backend(self, backend: str) -> str:
+        """The default for new plants; live plants are moved to it."""
         chosen = self.choose(backend)
-        if chosen != self.backend:
-            live = [p for ref in list(self.plants.values()) if (p := ref()) is not None]
-            for p in live:
-                self._unregister_raw(p._address)
-            if self.callback is not None and mujoco.get_mjcb_control() is self.callback:
-                mujoco.set_mjcb_control(None)
-            self.backend = chosen
-            self.callback = self.lib.neck_control if chosen == "native" else _python_control
-            for p in live:
+        self.backend = chosen
+        for p in [p for ref in list(self.plants.values()) if (p := ref()) is not None]:
+            if p._backend != chosen:
+                self._unregister_raw(p._address, p._backend)
+                p._backend = chosen
                 self._register_raw(p)
         return chosen
+
+    def _callback(self, backend: str):
+        return self.native_cb if backend == "native" else _python_control
 
     @staticmethod
     def _refuse(current) -> None:
         raise RuntimeError("the process-global MuJoCo control callback (mjcb_control) is set to "
                            f"{current!r}; neck_sim plants need it: call mujoco.set_mjcb_control(None) first")
 
-    def enter(self):
-        """Before a plant steps: make our callback the installed one; returns what ``leave`` restores."""
+    def enter(self, backend: str):
+        """Before a plant of ``backend`` steps: make its callback the installed one; returns what
+        ``leave`` restores (the native callback stays installed once there)."""
+        want = self._callback(backend)
         current = mujoco.get_mjcb_control()
-        if current is self.callback:
+        if current is want:
             return current
-        if current is not None:
+        if current is not None and current is not self.native_cb and current is not _python_control:
             self._refuse(current)
-        mujoco.set_mjcb_control(self.callback)
-        return self.callback if self.backend == "native" else None
+        mujoco.set_mjcb_control(want)
+        return want if current is None and backend == "native" else current
 
     def leave(self, previous) -> None:
-        if previous is not self.callback:
+        if mujoco.get_mjcb_control() is not previous:
             mujoco.set_mjcb_control(previous)
 
     def _register_raw(self, plant: "Plant") -> None:
-        if self.backend == "native":
+        if plant._backend == "native":
             if self.lib.neck_register(plant._address, ctypes.byref(plant._c)) < 0:
                 raise RuntimeError("too many live plants in this process (256)")
 
-    def _unregister_raw(self, address: int) -> None:
-        if self.backend == "native" and self.lib is not None:
+    def _unregister_raw(self, address: int, backend: str | None) -> None:
+        if backend == "native" and self.lib is not None:
             self.lib.neck_unregister(address)
 
     def register(self, plant: "Plant", backend: str | None) -> None:
-        chosen = self.choose(backend)
-        if chosen != self.backend:
-            self.set_backend(chosen)
+        plant._backend = self.choose(backend)
+        if self.backend is None:
+            self.backend = plant._backend
         self.plants[plant._address] = weakref.ref(plant)
         self._register_raw(plant)
 
-    def unregister(self, address: int) -> None:
+    def unregister(self, address: int, backend: str | None) -> None:
         self.plants.pop(address, None)
-        self._unregister_raw(address)
+        self._unregister_raw(address, backend)
 
 
 _DISPATCH = _Dispatch()
 
 
-def _finalize(address: int, _keepalive) -> None:
-    _DISPATCH.unregister(address)
+def _finalize(address: int, _keepalive, backend_cell) -> None:
+    _DISPATCH.unregister(address, backend_cell[0])
 
 
 def _python_control(m, d) -> None:
     ref = _DISPATCH.plants.get(m._address)
     plant = ref() if ref is not None else None
-    if plant is not None and plant.model is m:
+    if plant is not None and plant.model is m and plant._backend == "python":
         plant._python_forces()
 
 
 def set_backend(backend: str) -> str:
-    """Choose the process-wide callback: ``"native"`` (C), ``"python"`` or ``"auto"``.
+    """Choose the default callback of plants: ``"native"`` (C), ``"python"`` or ``"auto"``.
 
-    Live plants are moved to the new backend.  Returns the backend in use.
+    Live plants are moved to the new backend.  Returns the backend in use.  A plant made with an
+    explicit ``backend=`` keeps it and changes nothing for the others.
     """
     return _DISPATCH.set_backend(backend)
 
 
 def get_backend() -> str | None:
-    """The backend in use (None before the first plant)."""
+    """The default backend of plants (None before the first plant or ``set_backend``)."""
     return _DISPATCH.backend
 
 
@@ -318,8 +326,9 @@ class Plant:
         if python_only and _DISPATCH.choose(backend) == "native":
             raise ValueError(f"effects {python_only}: no native kernel (native_fields) for the C callback; "
                              "use Plant(..., backend='python')")
+        self._backend_cell = [None]             # shared with the finalizer, which must not hold the plant
         _DISPATCH.register(self, backend)
-        self._finalizer = weakref.finalize(self, _finalize, self._address, self._c)
+        self._finalizer = weakref.finalize(self, _finalize, self._address, self._c, self._backend_cell)
         self.reset()
 
     # -- construction helpers
@@ -425,7 +434,16 @@ class Plant:
 
     @property
     def backend(self) -> str:
-        return _DISPATCH.backend
+        """This plant's callback: "native" (C) or "python"."""
+        return self._backend_cell[0]
+
+    @property
+    def _backend(self) -> str:
+        return self._backend_cell[0]
+
+    @_backend.setter
+    def _backend(self, value: str) -> None:
+        self._backend_cell[0] = value
 
     def reset(self, alpha0=None) -> None:
         """Put the neck at pose ``alpha0`` (N,) rad (default straight) at rest, motors at zero
@@ -451,7 +469,7 @@ class Plant:
         self._rng = np.random.default_rng(self.seed)
         self._batch = None
         self._solo = PlantBatch([self], fresh=True)       # this plant's stepping state
-        previous = _DISPATCH.enter()
+        previous = _DISPATCH.enter(self._backend)
         try:
             mujoco.mj_step1(m, d)
         finally:
@@ -611,6 +629,9 @@ class PlantBatch:
                                  f"{(p0.substeps, p0.timestep, p0.n_joints, p0._n1)}")
             if not fresh and p._batch is not None:
                 raise ValueError(f"PlantBatch: plant {i} is already in an open batch")
+            if p._backend != p0._backend:
+                raise ValueError(f"PlantBatch: plant {i} runs on the {p._backend} backend, plant 0 on the "
+                                 f"{p0._backend} one; a batch steps with one callback")
         K, n, m, nsub = len(plants), p0.n_joints, p0._n1, p0.substeps
         # a plant's own batch refers to it weakly: no reference cycle, so a dropped plant leaves the
         # C registry at once (not at the next cyclic garbage collection)
@@ -734,7 +755,7 @@ class PlantBatch:
         """How many control periods from now need none of :meth:`step_checked`'s Python: native
         backend, no camera frame due (the delay line is :func:`delayed_controls`, a kernel).
         The caller steps them through :meth:`native_step` and then calls :meth:`ran_periods`."""
-        if _DISPATCH.backend != "native":
+        if not self._native:
             return 0
         return max(0, (self._cam_lead - 1) // self.nsub)     # periods whose _cam_lead stays > nsub
 
@@ -749,7 +770,7 @@ class PlantBatch:
         args = (i32(K), addr(plants), addr(models), addr(datas), int(active), i32(nsub), i32(m), i32(n),
                 int(self._c_ctrl if per_substep else self._c_forces), i32(per_substep), 0,
                 *(int(a) for a in self._c_out))
-        native = _DISPATCH.backend == "native"
+        native = self._native
         return ctypes.cast(_DISPATCH.lib.step_batch, ctypes.c_void_p).value if native else 0, args
 
     def delay_line(self) -> tuple:
@@ -779,8 +800,8 @@ class PlantBatch:
             due = np.flatnonzero((self.next_cam <= k0 + nsub) & (self.active > 0))
             start = k0.copy()
             self._schedule_frames(due, start)
-        if _DISPATCH.backend == "native":
-            previous = _DISPATCH.enter()
+        if self._native:
+            previous = _DISPATCH.enter("native")
             try:
                 fatal = _DISPATCH.lib.step_batch(*self._c_args, self._c_ctrl if per_substep else self._c_forces,
                                                  int(per_substep), self._c_capture if due is not None else None,
@@ -797,6 +818,11 @@ class PlantBatch:
             self._take_frames(due, start)
             self._cam_lead = self._camera_lead()
         return fatal
+
+    @property
+    def _native(self) -> bool:
+        """The batch's plants step with the C callback (``set_backend`` may move them)."""
+        return self.plants[0]._backend == "native"
 
     def _camera_lead(self) -> int:
         """Sub-steps until the first active plant's next camera frame."""
@@ -829,7 +855,7 @@ class PlantBatch:
 
     def _step_python(self, per_substep: bool, capture: bool) -> int:
         """The C loop of ``neck_step_batch`` with the Python callback."""
-        previous = _DISPATCH.enter()
+        previous = _DISPATCH.enter("python")
         try:
             for i in np.flatnonzero(self.active):
                 plant = self.plants[i]

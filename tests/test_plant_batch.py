@@ -49,7 +49,7 @@ class ReferenceStepper:
             self.frame_index += 1
             self.next_cam = self.camera_step(self.frame_index)
         self.frame = None
-        previous = P._DISPATCH.enter()
+        previous = P._DISPATCH.enter(pl.backend)
         try:
             for s in range(self.n):
                 d.ctrl[: len(f)] = self.command_at(self.k + s)

@@ -184,6 +184,10 @@ def main(argv: list[str] | None = None) -> int:
         except SystemExit as exc:   # --help, --version (0) or a bad option (2, one line printed)
             return exc.code if isinstance(exc.code, int) else 2
         name = f"neck-sim {args.command}"
+        from neck_sim.cli.common import closed_stdout_error
+        if (closed := closed_stdout_error(name)) is not None:
+            print(closed, file=sys.stderr)
+            return 2
         _import_mujoco_without_opengl()
         with _sigterm_as_exception():
             code = int(args._run(args) or 0)

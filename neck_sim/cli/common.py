@@ -17,15 +17,27 @@ def add_params_arguments(parser, default_n_joints: int = 3) -> None:
                         help=f"parameter file (.json/.toml, see `neck-sim params -o`); default: {neck}")
     parser.add_argument("--n-joints", type=int, default=None,
                         help=f"number of X-joints N (default {default_n_joints}, or the parameter file's)")
+    add_implausible_params_argument(parser)
 
 
-def load_params_file(path, option: str = "--params") -> P.NeckParams:
-    """``params.load(path)`` with every error naming the option and the file."""
+def add_implausible_params_argument(parser) -> None:
+    """``--accept-implausible-params``: load a parameter file whose values look like a unit mistake."""
+    parser.add_argument("--accept-implausible-params", action="store_true",
+                        help="accept parameter values that look like a unit mistake (lengths over 5 m, masses "
+                             "over 10 kg, gravity over 25 m/s^2; refused by default); a warning names them")
+
+
+def load_params_file(path, option: str = "--params", accept_implausible: bool = False) -> P.NeckParams:
+    """``params.load(path)`` with every error naming the option and the file; implausible values
+    accepted on request are printed as warnings."""
     try:
-        return P.load(path)
+        params = P.load(path, accept_implausible=accept_implausible)
     except (ValueError, OSError) as exc:
         text = str(exc)
         raise ValueError(text if os.fspath(path) in text else f"{option} {os.fspath(path)}: {text}") from None
+    for text in P.implausible_values(params):
+        print(f"warning: {option} {os.fspath(path)}: {text} (accepted: --accept-implausible-params)")
+    return params
 
 
 def params_from_args(args) -> P.NeckParams:
@@ -33,7 +45,7 @@ def params_from_args(args) -> P.NeckParams:
     if args.n_joints is not None and args.n_joints < 1:
         raise ValueError(f"--n-joints: must be >= 1, got {args.n_joints}")
     if args.params:
-        params = load_params_file(args.params)
+        params = load_params_file(args.params, accept_implausible=args.accept_implausible_params)
         if args.n_joints is not None and args.n_joints != params.n_joints:
             raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {params.n_joints})")
         return params
@@ -91,6 +103,19 @@ def probability(text: str) -> float:
     return _number(float, text, lambda v: 0 < v < 1, "a number between 0 and 1 (exclusive)")
 
 
+# -- standard output ----------------------------------------------------------------------------
+
+def closed_stdout_error(command: str) -> str | None:
+    """The one-line error for a run whose standard output is closed (``>&-``: Python then sets
+    ``sys.stdout`` to None and every print vanishes, so results would be lost with status 0);
+    None when it is open."""
+    import sys
+    if sys.stdout is not None:
+        return None
+    return (f"{command}: error: standard output is closed (started with >&-?); results would be lost: "
+            "redirect it to a file or /dev/null instead")
+
+
 # -- input and output paths, checked before any work ------------------------------------------
 
 def _same_file(a: str, b: str) -> bool:
@@ -110,38 +135,63 @@ def _nearest_existing(path: str) -> str:
     return path
 
 
-def check_paths(inputs: dict | None = None, files: dict | None = None, dirs: dict | None = None) -> None:
-    """Refuse, before any work, output paths that would destroy an input or cannot be written.
+def _input_refusal(opt: str, path: str) -> None:
+    """Refuse an input that is a FIFO, socket or device (opening a FIFO blocks until a writer comes)."""
+    from neck_sim.atomic import path_kind
+    kind = path_kind(path)
+    if kind is not None and kind != "a directory":
+        raise ValueError(f"{opt} {path}: is {kind}, not a regular file; give a file (copy the data into one)")
+
+
+def check_paths(inputs: dict | None = None, files: dict | None = None, dirs: dict | None = None,
+                contents: dict | None = None) -> None:
+    """Refuse, before any work, input and output paths that would block, destroy an input or
+    cannot be written.
 
     ``inputs``, ``files`` (output files) and ``dirs`` (output directories, created when missing)
     map the option that names a path (``"--json"``, ``"LOG"``) to the path; None values are
-    skipped.  An output file must not be an input (same file after resolving links, or the same
-    name), another output, or a directory, and its directory must exist and be writable.
+    skipped.  ``contents`` maps an option of ``dirs`` to the names of the files the command
+    writes inside that directory (``report.md``): those are output files too.
+
+    An input must not be a FIFO, socket or device node.  An output file must not be an input (same
+    file after resolving links, or the same name), another output (a file written inside an output
+    directory included), or anything :func:`neck_sim.atomic.output_refusal` refuses (a directory,
+    a device node, FIFO or socket or a symlink to one, a read-only file, a name over NAME_MAX), and
+    its directory must exist and be writable.  An output directory may hold inputs.
     Raises ValueError naming the option and the user's path.
     """
+    from neck_sim.atomic import output_refusal
     inputs = {k: os.fspath(v) for k, v in (inputs or {}).items() if v is not None}
     files = {k: os.fspath(v) for k, v in (files or {}).items() if v is not None}
     dirs = {k: os.fspath(v) for k, v in (dirs or {}).items() if v is not None}
-    seen: dict[str, str] = {}
-    for opt, path in files.items():
+    for opt, path in inputs.items():
+        _input_refusal(opt, path)
+    # (option, path, inside a directory the command creates)
+    outputs = [(opt, path, False) for opt, path in files.items()]
+    outputs += [(opt, os.path.join(dirs[opt], name), True) for opt, names in (contents or {}).items()
+                if opt in dirs for name in names]
+    seen: list[tuple[str, str]] = []
+    for opt, path, inside in outputs:
         for in_opt, in_path in inputs.items():
             if _same_file(path, in_path):
                 raise ValueError(f"{opt} {path}: is the input {in_opt} {in_path}; refusing to write over an "
                                  "input (choose another output path)")
-        for other, other_path in seen.items():
+        for other, other_path in seen:
             if _same_file(path, other_path):
-                raise ValueError(f"{opt} {path}: is also the output of {other}; give each output its own path")
-        seen[opt] = path
-        if os.path.isdir(path):
-            raise ValueError(f"{opt} {path}: is a directory; give a file name")
+                raise ValueError(f"{opt} {path}: is also the output of {other} {other_path}; give each output "
+                                 "its own path")
+        seen.append((opt, path))
+        reason = output_refusal(path)
+        if reason is not None:
+            raise ValueError(f"{opt} {path}: {reason.removeprefix('it ')}")
+        if inside:
+            continue
         parent = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(parent):
             what = "is not a directory" if os.path.exists(parent) else "does not exist"
             raise ValueError(f"{opt} {path}: the folder {parent} {what}")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise ValueError(f"{opt} {path}: the folder {parent} is not writable")
-        if os.path.exists(path) and not os.access(path, os.W_OK):
-            raise ValueError(f"{opt} {path}: the file is read-only")
     for opt, path in dirs.items():
         for in_opt, in_path in inputs.items():
             if _same_file(path, in_path):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_params_fit_log, check_paths, load_params_file,
-                                 nonnegative_float, positive_int, probability)
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_params_fit_log,
+                                 check_paths, load_params_file, nonnegative_float, positive_int, probability)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
@@ -22,6 +22,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--params", metavar="FILE",
                         help="nominal constants (.json/.toml, 'neck-sim params' format) instead of the log's neck "
                              "record; their friction and cable values only seed the fit (those are what is fitted)")
+    add_implausible_params_argument(parser)
     parser.add_argument("--json", metavar="PATH", help="write the diagnosis (verdict, findings, baseline, ...) as JSON")
     parser.add_argument("--report", metavar="DIR", help="write report.md, figures and model.json into DIR")
     parser.add_argument("--extended", metavar="PATH", help="write the final (extended) model as JSON")
@@ -41,14 +42,16 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
-    from identification.report import format_summary, write_report
+    from identification.report import REPORT_FILES, format_summary, write_report
     from neck_sim.logs import read_log
+    from neck_sim.logs.reader import require_camera_frames
 
     check_paths(inputs={"LOG": args.log, "--params": args.params,
-                        "--model": args.model if os.path.isfile(args.model) else None},
-                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report})
+                        "--model": args.model if os.path.exists(args.model) else None},
+                files={"--json": args.json, "--extended": args.extended}, dirs={"--report": args.report},
+                contents={"--report": REPORT_FILES})
     model = parse_model(args.model)              # fail early on a bad --model
-    params = load_params_file(args.params) if args.params else None
+    params = load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params else None
     kw = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
@@ -56,6 +59,7 @@ def run(args) -> int:
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
                    require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
+    require_camera_frames(log)
     if params is not None:
         check_params_fit_log(params, log, args.params)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
-                                 positive_float, report_input_warnings)
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_paths,
+                                 load_params_file, nonnegative_float, positive_float, report_input_warnings)
 
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
 
@@ -29,6 +29,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--slack-threshold", type=nonnegative_float, default=2.0, metavar="N",
                         help="tension (eq 41) below which a cable sample counts as slack and is left out")
     add_force_range_argument(parser)
+    add_implausible_params_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
@@ -43,16 +44,19 @@ def run(args) -> int:
     from identification.preprocessing import PreprocessSettings
     from neck_sim.cli.common import check_params_fit_log
     from neck_sim.logs import read_log
+    from neck_sim.logs.reader import require_camera_frames
     from neck_sim.atomic import atomic_write_json
 
-    params = load_params_file(args.params) if args.params else None
+    params = load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params else None
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
     settings = IdentificationSettings(
         weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
-    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
+    # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27
+    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors", "camera"),
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
+    require_camera_frames(log)
     if params is not None:
         check_params_fit_log(params, log, args.params)
     nominal = params or log.params
@@ -60,9 +64,6 @@ def run(args) -> int:
         raise ValueError(f"--simulators: cannot handle this log's routing ({nominal.n_joints} joints, "
                          f"{nominal.n_cables} cables): the §5.6 comparison replays the run under the paper's "
                          f"computed-torque law, which needs the paper's routing; identify without --simulators")
-    if log.camera is None:
-        raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
-                         f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
     print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
           file=sys.stderr)
     result = identify_log(log, settings, params=params, models=models)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from neck_sim.cli.common import add_force_range_argument
+from neck_sim.cli.common import add_force_range_argument, add_implausible_params_argument
 
 HELP = "turn the prototype's motors/camera CSV files into an MCAP log (columns: see --help)"
 
@@ -25,6 +25,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--estimate", metavar="CSV", help="online joint-angle estimate (optional)")
     parser.add_argument("--params", metavar="PATH", help="parameter file (.json/.toml) with the nominal constants "
                                                          "(default: the 3-joint prototype)")
+    add_implausible_params_argument(parser)
     parser.add_argument("--shift-time", action="store_true", help="subtract the earliest time of the files")
     add_force_range_argument(parser)
     parser.add_argument("-o", "--output", required=True, metavar="MCAP", help="log to write")
@@ -38,7 +39,8 @@ def run(args) -> int:
                         "--estimate": args.estimate, "--params": args.params}, files={"-o": args.output})
     from neck_sim.csv_import import import_csv
 
-    params = load_params_file(args.params) if args.params else P.default_params(3)
+    params = (load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params
+              else P.default_params(3))
     if args.camera is None:
         print("note: no --camera file: the log cannot be used for identification or diagnosis")
     res = import_csv(args.motors, args.output, camera=args.camera, reference=args.reference,

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import os
 
-from neck_sim.cli.common import add_force_range_argument, check_paths, load_params_file, nonnegative_float
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_paths,
+                                 load_params_file, nonnegative_float)
 
 HELP = "re-simulate a log open loop from its initial state and commanded forces; report the drift"
 
@@ -28,6 +29,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="GROUP.FIELD=VALUE",
                         help="change a plant parameter, e.g. --set friction.c_s=0.6 --set cables.k=[5000,5000,5000,2000]")
     parser.add_argument("--params", metavar="PATH", help="plant parameter file instead of the recorded one")
+    add_implausible_params_argument(parser)
     parser.add_argument("--no-effects", action="store_true", help="replay without the recorded effects")
     parser.add_argument("--max-alpha-drift", type=nonnegative_float, metavar="DEG",
                         help="exit with status 1 when a joint angle drifts by more than DEG degrees")
@@ -48,7 +50,8 @@ def run(args) -> int:
         output = args.output or os.path.splitext(args.log)[0] + "-replay.mcap"
     check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"-o": output, "--json": args.json})
     changes = dict(_parse_change(s) for s in args.set)
-    res = replay(args.log, params=load_params_file(args.params) if args.params else None,
+    res = replay(args.log, params=load_params_file(args.params, accept_implausible=args.accept_implausible_params)
+                 if args.params else None,
                  effects=Effects() if args.no_effects else None, changes=changes or None, output=output,
                  progress=not args.no_progress, accept_out_of_range_forces=args.accept_out_of_range_forces)
     for note in res.notes:

@@ -269,6 +269,47 @@ def _angle_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, params: Ne
             f"{cause}")
 
 
+def max_motor_angle(params: NeckParams) -> float:
+    """Largest plausible |theta| (rad at the motor shaft): the motor winding a whole neck's height of
+    cable, R / r_d x N (L + b + pi r).  Beyond it no cable exists to wind."""
+    g, a = params.geometry, params.actuation
+    return a.R / a.r_d * g.n_joints * (g.L + g.b + math.pi * g.r)
+
+
+def _encoder_problem(spec: TopicSpec, t: np.ndarray, theta: np.ndarray, params: NeckParams) -> str | None:
+    """Encoders in degrees or counts: a motor angle winding more cable than the neck holds."""
+    limit = max_motor_angle(params)
+    worst = np.abs(theta).max(axis=0) if theta.size else np.zeros(0)
+    if not (worst > limit).any():
+        return None
+    j = int(np.argmax(worst))
+    i = int(np.argmax(np.abs(theta[:, j])))
+    value = float(worst[j])
+    counts = params.sensors.encoder_counts_per_turn
+    integers = bool(np.all(theta == np.round(theta)))       # raw encoder counts are whole numbers
+    if integers and value * 2 * math.pi / counts <= limit:
+        cause = f"looks like encoder counts ({counts} per turn: {value * 2 * math.pi / counts:.4g} rad), expected rad"
+    elif value / math.degrees(1.0) <= limit:
+        cause = f"looks like degrees ({value:.6g} deg = {math.radians(value):.4g} rad), expected rad"
+    else:
+        cause = "these are not motor-shaft angles in radians (wrong column or units?)"
+    return (f"{spec.topic}: encoder theta{j + 1} reaches {float(theta[i, j]):.6g} at sample {i} "
+            f"(t = {float(t[i]):.6g} s): {cause}; R/r_d x N (L + b + pi r) = {limit:.4g} rad would wind a whole "
+            "neck's height of cable")
+
+
+def _force_unit_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:
+    """Forces in kN: every commanded force below f_max / 1000 (and not all zero)."""
+    a = params.actuation
+    if not force.size:
+        return None
+    top = float(np.abs(force).max())
+    if not 0 < top <= a.f_max / 1000:
+        return None
+    return (f"{spec.topic}: every commanded force is at most {top:.4g} N ({len(t)} samples) while the record's "
+            f"f_max = {a.f_max:g} N and t_min = {a.t_min:g} N: forces look like kilonewtons, expected N")
+
+
 def _force_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: NeckParams) -> str | None:
     f_max = params.actuation.f_max
     tol = 1e-9 * f_max
@@ -287,14 +328,55 @@ def _force_problem(spec: TopicSpec, t: np.ndarray, force: np.ndarray, params: Ne
             f"[0, f_max] = [0, {f_max:g}] N ({int(bad.any(axis=1).sum())} of {len(t)} samples): {cause}")
 
 
+STALE_SECONDS = 1.0          # a commanded force bit-identical this long while its motor turns is stale
+STALE_MOTION_COUNTS = 20     # encoder counts its motor must move meanwhile
+MIN_CAMERA_FRAMES = 8        # what identification's camera filter and resampling need
+
+
+def _stale_force_problem(spec: TopicSpec, t: np.ndarray, theta: np.ndarray, force: np.ndarray,
+                         params: NeckParams) -> str | None:
+    """A force channel that never changes (bit-identical, away from 0 and the limits) over at
+    least ``STALE_SECONDS`` while its motor turns: a stale force logger, not a command."""
+    a = params.actuation
+    if len(t) < 2 or float(t[-1] - t[0]) < STALE_SECONDS:
+        return None
+    moved = np.ptp(theta, axis=0) > STALE_MOTION_COUNTS * params.sensors.encoder_resolution
+    first = force[0]
+    at_limit = (np.abs(first) <= 1e-9 * a.f_max) | (np.abs(first - a.f_min) <= 1e-9 * a.f_max) | (
+        np.abs(first - a.f_max) <= 1e-9 * a.f_max)
+    stuck = np.all(force == first, axis=0) & moved & ~at_limit
+    if not stuck.any():
+        return None
+    j = int(np.flatnonzero(stuck)[0])
+    return (f"{spec.topic}: force{j + 1} = {float(first[j]):.6g} N in all {len(t)} samples "
+            f"(t = {float(t[0]):.6g} .. {float(t[-1]):.6g} s) while theta{j + 1} moves over "
+            f"{float(np.ptp(theta[:, j])):.4g} rad: a stale force logger (a commanded force never stays "
+            "bit-identical while its motor turns); fix the force logging and record again")
+
+
+def _stuck_camera_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, params: NeckParams) -> str | None:
+    """A camera whose frames are all bit-identical although it has noise (``camera_noise`` > 0)."""
+    if len(t) < MIN_CAMERA_FRAMES or params.sensors.camera_noise <= 0 or not np.all(alpha == alpha[0]):
+        return None
+    values = ", ".join(f"{v:.4g}" for v in alpha[0])
+    return (f"{spec.topic}: the camera is stuck: every one of its {len(t)} frames (t = {float(t[0]):.6g} .. "
+            f"{float(t[-1]):.6g} s) reads alpha = [{values}] rad, while a working camera has noise of "
+            f"about camera_noise = {math.degrees(params.sensors.camera_noise):.3g} deg; check the camera and "
+            "its tracking, and record again")
+
+
 def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
-                    accept_out_of_range_forces: bool = False) -> tuple[str, ...]:
+                    accept_out_of_range_forces: bool = False, simulated: bool = False) -> tuple[str, ...]:
     """Compare a measured topic with the ``neck`` record: sample rates (motors, camera), joint
     angles within |alpha| <= alpha_max + 0.1 rad (camera, reference), commanded forces in
-    [0, f_max] (motors).
+    [0, f_max] (motors); units (encoders in degrees or counts, forces in kN); stuck sensors (a
+    force channel bit-identical for a second while its motor turns, a camera whose frames are
+    all identical).
 
     ``fields``: ``t`` (T,) s and the topic's (T, n) arrays.  Raises LogError naming the topic, the
-    sample and the likely cause (times in ms, angles in degrees, ...).  With
+    sample and the likely cause (times in ms, angles in degrees, ...).  ``simulated`` (the log has
+    /neck/truth): no stuck-sensor checks, its forces are what neck-sim commanded (an environment
+    may hold an action constant), not a logger's record.  With
     ``accept_out_of_range_forces`` an out-of-range force is returned as a warning instead.
     """
     t = fields["t"]
@@ -303,6 +385,12 @@ def check_plausible(spec: TopicSpec, fields: dict, params: NeckParams, *,
         problems.append(_rate_problem(spec, t, params))
     if spec.name in _ANGLE_FIELDS:
         problems.append(_angle_problem(spec, t, fields[_ANGLE_FIELDS[spec.name]], params))
+    if spec.name == "camera" and not simulated:
+        problems.append(_stuck_camera_problem(spec, t, fields["alpha"], params))
+    if spec.name == "motors" and not simulated:
+        problems.append(_stale_force_problem(spec, t, fields["theta"], fields["force"], params))
+        problems.append(_encoder_problem(spec, t, fields["theta"], params))
+        problems.append(_force_unit_problem(spec, t, fields["force"], params))
     problems = [p for p in problems if p]
     if problems:
         raise LogError(problems[0])

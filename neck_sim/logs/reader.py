@@ -29,17 +29,19 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPICS, LogError, TopicSpec, check_plausible,
-                                    params_from_metadata, resolve_topic)
+from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TOPICS, LogError,
+                                    TopicSpec, check_plausible, params_from_metadata, resolve_topic)
 from neck_sim.params import NeckParams
 
-__all__ = ["read_log", "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
+__all__ = ["read_log", "require_camera_frames",
+           "Log", "MotorSamples", "CameraSamples", "ReferenceSamples", "EstimateSamples",
            "TruthSamples"]
 
 _MAGIC = b"\x89MCAP0\r\n"
 _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_MESSAGE = 0x06, 0x07, 0x05
 _NUMBER_CHARS = b"0123456789.+-eE"
 _READ_ERRORS = (McapError, struct.error, ValueError, KeyError, IndexError, EOFError, OSError)
+_MAX_NS = 2**63 - 1
 _T_TOLERANCE_NS = 1000          # |t * 1e9 - log_time| allowed (the contract: the same instant)
 
 
@@ -132,7 +134,8 @@ def _to_ns(value: float | None, name: str) -> int | None:
     v = float(value)
     if not np.isfinite(v) or v < 0:
         raise LogError(f"read_log: {name} must be a finite time >= 0 s, got {value!r}")
-    return int(round(v * 1e9))
+    # beyond MCAP's time range (2^63 ns = 292 years) means "after every message"
+    return min(int(round(min(v, 1e12) * 1e9)), _MAX_NS)
 
 
 def read_log(path, *, start: float | None = None, end: float | None = None, topics=None,
@@ -204,8 +207,11 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             channels = {topic: None for topic in payloads}
             counts = {topic: len(data) for topic, (_, data) in payloads.items()}
         for spec in required:
-            if spec.topic not in channels or counts.get(spec.topic, 1) == 0:
+            if spec.topic not in channels:
                 raise LogError(f"{path}: missing required topic {spec.topic} ({spec.description})")
+            if counts.get(spec.topic, 1) == 0:
+                raise LogError(f"{path}: the required topic {spec.topic} ({spec.description}) is in the log but "
+                               "holds no messages: its recorder wrote nothing; record it for the whole run")
         present = [s for s in wanted if s.topic in channels]
         for spec in present:
             ch = channels[spec.topic]
@@ -227,11 +233,27 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
                                f"{spec.topic} (at least 2 needed){_span_text(summary)}")
             fields = {f: getattr(samples[spec.name], f) for f in ("t", *spec.field_names)}
             try:
-                notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces)
+                notes += check_plausible(spec, fields, params, accept_out_of_range_forces=accept_out_of_range_forces,
+                                         simulated=TOPIC_BY_NAME["truth"].topic in channels)
             except LogError as exc:
                 raise LogError(f"{path}: {exc}") from None
     return Log(path=path, params=params, metadata=neck, run_info=metadata.get(RUN_RECORD, {}),
                attachments=attachments, message_counts=counts, window=(start, end), warnings=notes, **samples)
+
+
+def require_camera_frames(log: "Log", minimum: int = MIN_CAMERA_FRAMES) -> None:
+    """LogError saying what is missing and what to record when ``log`` (its window) holds fewer than
+    ``minimum`` camera frames: identification and diagnosis need the joint angles through the run."""
+    frames = 0 if log.camera is None else len(log.camera.t)
+    if frames >= minimum:
+        return
+    start, end = log.window
+    where = _window_text(start, end) if start is not None or end is not None else "the log"
+    rate = log.params.sensors.camera_rate_hz
+    raise LogError(f"{log.path}: {where} holds {frames} frame(s) of /neck/camera: identification and diagnosis "
+                   f"need the camera's joint angles through the run (at least {minimum} frames, "
+                   f"{minimum / rate:.2g} s at the record's camera_rate_hz = {rate:g} Hz); record the camera "
+                   "topic for the whole run")
 
 
 def _window_text(start, end) -> str:
