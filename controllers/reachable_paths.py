@@ -192,7 +192,7 @@ def shapes_tour(params: NeckParams, duration_scale: float = 1.0, *, bend_deg: fl
 
 
 def excitation_path(params: NeckParams, duration_scale: float = 1.0, *, bend_deg: float = BEND_DEG,
-                    margin: float = FORCE_MARGIN, levels=(0.2, 0.8)) -> ReachablePath:
+                    margin: float = FORCE_MARGIN, levels=(0.2, 0.6)) -> ReachablePath:
     """The identification experiment of a neck the paper's laws cannot move (module docstring).
 
     At each pretension level (``levels``: positions in the stable range, see
