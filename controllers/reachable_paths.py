@@ -234,19 +234,23 @@ def check_holdable(trajectory, params: NeckParams, *, margin: float = FORCE_MARG
     from scipy.optimize import lsq_linear
 
     scale = max(float(np.abs(g).max()), 1e-3)
-    held = []
+    held, residuals = [], []
     for k in range(t.size):                        # reach first: it says more than stability
         sol = lsq_linear(Z[k], g[k], bounds=(0.0, hi))
-        residual = Z[k] @ sol.x - g[k]
-        if np.abs(residual).max() > 1e-3 * scale:
-            j = int(np.argmax(np.abs(residual)))
-            at = [f"c{c + 1} at {'0' if sol.x[c] < 1e-6 else f'{hi:g}'} N" for c in range(params.n_cables)
-                  if sol.x[c] < 1e-6 or sol.x[c] > hi - 1e-6]
-            limit = f" ({', '.join(at)})" if at else ""
-            raise ValueError(f"{trajectory.name}: the pose at t = {t[k]:.2f} s, {_pose(alpha[k])}, is out of this "
-                             f"neck's reach: no tensions of its {params.n_cables} cables in [0, {hi:g}] N hold it (the "
-                             f"closest leave {abs(residual[j]):.3g} N m unbalanced at joint {j + 1}{limit})")
         held.append(sol.x)
+        residuals.append(Z[k] @ sol.x - g[k])
+    residuals = np.abs(np.array(residuals))
+    if residuals.max() > 1e-3 * scale:
+        k, j = np.unravel_index(np.argmax(residuals), residuals.shape)      # the pose furthest out of reach
+        x = held[k]
+        at = [f"c{c + 1} at {'0' if x[c] < 1e-6 else f'{hi:g}'} N" for c in range(params.n_cables)
+              if x[c] < 1e-6 or x[c] > hi - 1e-6]
+        limit = f"; {', '.join(at)}" if at else ""
+        first = t[np.argmax(residuals.max(-1) > 1e-3 * scale)]
+        raise ValueError(f"{trajectory.name}: the pose at t = {t[k]:.2f} s, {_pose(alpha[k])}, is out of this neck's "
+                         f"reach (the first out of reach is at t = {first:.2f} s): no tensions of its "
+                         f"{params.n_cables} cables in [0, {hi:g}] N hold it (the closest leave "
+                         f"{residuals[k, j]:.3g} N m unbalanced at joint {j + 1}{limit})")
     for k, tk in enumerate(held):
         if not _held_stable(alpha[k], tk, params):
             c = int(np.argmin(tk))
