@@ -313,7 +313,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         for term in model.terms:
             eff = term.effect
             design = eff.design(data, dict(term.shape), ctx)
-            cols = [nm for col in eff.columns for nm in col.names(n)]
+            cols = [nm for col in eff.columns for nm in col.names(n, C)]
             if design.torque.shape[2] != len(cols) or design.cable.shape[2] != len(cols):
                 raise RuntimeError(f"{term.name}.design: {design.torque.shape[2]} torque and {design.cable.shape[2]} "
                                    f"cable columns for {len(cols)} names {cols}")
@@ -324,7 +324,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
             colsT.append(design.torque)
             colsC.append(design.cable)
             names += cols
-            units += [col.unit for col in eff.columns for _ in col.names(n)]
+            units += [col.unit for col in eff.columns for _ in col.names(n, C)]
         p = len(names)
         stiff = k_hat + lam_hat * np.maximum(t_slow, 0.0)                       # (S, C) N/m
         if p:

@@ -118,7 +118,9 @@ def _residual_figure(diag, path: str, kind: str) -> str:
     if kind == "torque":
         chans = list(range(n))
         scale, unit, title = 1.0, "N m", "joint torque residual (eq 51)"
-        cable_of = lambda i: i                                  # the right cable that drives joint i
+        # the cable that drives joint i most (the paper's routing: right cable i)
+        lever = np.abs(data.Z).mean(axis=0)                     # (N, C) m
+        cable_of = lambda i: int(np.argmax(lever[i]))
         joint_of = lambda i: i
         name_of = lambda i: f"joint {i + 1}"
     else:

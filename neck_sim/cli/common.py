@@ -38,6 +38,19 @@ def params_from_args(args) -> P.NeckParams:
     return P.default_params(3 if args.n_joints is None else args.n_joints)
 
 
+def check_params_fit_log(params: P.NeckParams, log, path) -> None:
+    """Refuse ``--params`` whose neck is not the log's: joints, cables and routing (one line
+    naming the field, the file's and the log's value)."""
+    log_p = log.params
+    for field, mine, theirs in (("n_joints", params.n_joints, log_p.n_joints),
+                                ("n_cables", params.n_cables, log_p.n_cables)):
+        if mine != theirs:
+            raise ValueError(f"--params {path}: {field} = {mine}, the log's neck record has {theirs}")
+    if params.routing.segment_cases(params.n_joints).tolist() != log_p.routing.segment_cases(log_p.n_joints).tolist():
+        raise ValueError(f"--params {path}: routing.cables routes the cables differently from the log's neck record "
+                         f"(its 'routing' key); use the parameter file the log was recorded with")
+
+
 # -- option values: argparse names the option in its error ------------------------------------
 
 def _number(kind, text: str, test, wanted: str):
