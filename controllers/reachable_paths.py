@@ -18,7 +18,7 @@ equilibrium of every grid point, refused if one leaves the reachable set or is u
   ``K_f d alpha = Z d t`` at the start pose (least squares: the routing makes what it can);
 * :func:`largest_move` -- how far along a direction the path stays feasible: bisection on the
   step, every candidate checked by solving its equilibria (in the joint range, stable with held
-  motors, tensions in [t_min, margin f_max], no joint beyond ``bend_deg``);
+  motors, tensions in [t_min, margin f_max], no joint bent beyond ``bend_deg`` from the start);
 * :func:`shapes_tour` -- the default trajectory of such a neck (C both ways, S both ways, head
   reach, back to straight after each);
 * :func:`excitation_path` -- the identification experiment of such a neck (README of
@@ -141,7 +141,7 @@ def _feasible(params: NeckParams, start: Pretension, w: np.ndarray, lo: float, h
                              alpha0=start.alpha)
     except ValueError:
         return False
-    return bool(np.abs(path.grid_alpha).max() <= bend)
+    return bool(np.abs(path.grid_alpha - start.alpha).max() <= bend)     # bent from the start pose
 
 
 def largest_move(params: NeckParams, start: Pretension, direction, *, bend_deg: float = BEND_DEG,
