@@ -109,7 +109,7 @@ def run(args) -> int:
     _check_options(args, controller)
     print(choice.line)
     if effects.active():
-        print("plant effects: " + "; ".join(f"{e.name} {e.to_dict()}" for e in effects.active()))
+        print(f"plant effects: {', '.join(args.effect)} (the log's run record lists them; its neck record is nominal)")
     lqr = controller == "elastic-lqr"
     laws = args.law or [2]
     name = args.trajectory or ("identification" if args.table3 else None)
