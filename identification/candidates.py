@@ -20,7 +20,7 @@ torque of a payload or of spring errors.  Using the encoders' theta_ddot keeps t
 second derivative out of the large reflected-inertia term; the block does not depend on the cable
 model.
 
-**Cable block** (eq 42/54 per taut cable, N+1 rows per sample).  Elastic models:
+**Cable block** (eq 42/54 per taut cable, m rows per sample: the routing's cables).  Elastic models:
 
     y_C = f - (R/r_d) I_a theta_ddot  =  f_motor + k x_c + c_a x_c_dot + lambda x_c t + (k + lambda t) x_0,
 
@@ -47,7 +47,7 @@ the effect's own module of :mod:`neck_sim.effects`; this module only loops over 
 
 Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad, ``df(i)`` N,
 ``mu(i)``, ``k(i)`` N/m, ``c_a(i)`` N s/m, ``lambda(i)`` 1/m, ``payload`` kg,
-``dk(j)`` N/m per joint's side springs; i = 1..N+1 cables, j = 1..N joints.
+``dk(j)`` N/m per joint's side springs; i = 1..m cables (the routing's), j = 1..N joints.
 """
 
 from __future__ import annotations

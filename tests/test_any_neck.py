@@ -82,6 +82,14 @@ def test_diagnose_any_routing_with_a_nominal_file(neck10, tmp_path, capsys):
     assert (tmp_path / "rep" / "residuals_torque.png").stat().st_size > 0 and (tmp_path / "rep" / "report.md").exists()
 
 
+def test_what_the_routing_cannot_do_is_refused_in_one_line(neck10, tmp_path, capsys):
+    log, _, _ = neck10
+    assert main(["identify", log, "--simulators", "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err] and "--simulators: cannot handle this log's routing (10 joints, 4 cables)" in err
+    assert not (tmp_path / "o.json").exists()
+
+
 def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
     log, _, _ = neck10
     other = tmp_path / "p10_paper.toml"
@@ -93,3 +101,13 @@ def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
         assert len(err.splitlines()) == 1
         assert f"--params {other}: n_cables = 11, the log's neck record has 4" in err
         assert not (tmp_path / "o.json").exists()
+    # a parameter file whose per-cable arrays disagree with its own routing
+    good = neck10[1].read_text()
+    start = good.index("f_s = [")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good[:start] + "f_s = [1.0, 2.0, 3.0, 4.0, 5.0]" + good[good.index("]", start) + 1:])
+    assert main(["identify", log, "--params", str(bad), "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err]
+    assert "friction.f_s: expected 4 values (one per cable, 4 in routing.cables), got 5" in err
+    assert not (tmp_path / "o.json").exists()

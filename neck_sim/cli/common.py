@@ -9,12 +9,14 @@ import os
 from neck_sim import params as P
 
 
-def add_params_arguments(parser) -> None:
-    """``--params PATH`` and ``--n-joints N``: which neck a command works on."""
+def add_params_arguments(parser, default_n_joints: int = 3) -> None:
+    """``--params PATH`` and ``--n-joints N``: which neck a command works on (without either, the
+    paper's neck with ``default_n_joints`` X-joints, which the command sets when it is not 3)."""
+    neck = "the paper's neck" if default_n_joints == 3 else f"the paper's design with {default_n_joints} X-joints"
     parser.add_argument("--params", metavar="PATH",
-                        help="parameter file (.json/.toml, see `neck-sim params -o`); default: the paper's neck")
+                        help=f"parameter file (.json/.toml, see `neck-sim params -o`); default: {neck}")
     parser.add_argument("--n-joints", type=int, default=None,
-                        help="number of X-joints N (default 3, or the parameter file's)")
+                        help=f"number of X-joints N (default {default_n_joints}, or the parameter file's)")
 
 
 def load_params_file(path, option: str = "--params") -> P.NeckParams:

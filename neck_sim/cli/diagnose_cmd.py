@@ -11,7 +11,7 @@ from neck_sim.cli.common import (add_force_range_argument, check_params_fit_log,
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
 
-MODEL_HELP = ("baseline model: 'paper' (default: arctan friction + variable-stiffness cables), 'rigid' (rigid "
+MODEL_HELP = ("baseline model (default: %(default)s): 'paper' (arctan friction + variable-stiffness cables), 'rigid' (rigid "
               "cables, no friction, eq 25), 'rigid-friction', 'linear' (Table 1's constant stiffness), a "
               "comma-separated list of effect names, or a model.json written by a previous diagnosis")
 

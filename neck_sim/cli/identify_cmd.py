@@ -20,7 +20,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
     parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
     parser.add_argument("--models", default="friction,elastic,variable",
-                        help="comma-separated subset of friction,elastic,variable (default: all)")
+                        help="comma-separated subset of friction,elastic,variable (default: %(default)s, all three)")
     parser.add_argument("--motor-cutoff", type=positive_float, default=None, metavar="HZ",
                         help="Butterworth cutoff for encoders and forces (default: residual analysis)")
     parser.add_argument("--camera-cutoff", type=positive_float, default=None, metavar="HZ",
@@ -55,6 +55,11 @@ def run(args) -> int:
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
     if params is not None:
         check_params_fit_log(params, log, args.params)
+    nominal = params or log.params
+    if args.simulators and not nominal.routing.is_paper_kind(nominal.n_joints):
+        raise ValueError(f"--simulators: cannot handle this log's routing ({nominal.n_joints} joints, "
+                         f"{nominal.n_cables} cables): the §5.6 comparison replays the run under the paper's "
+                         f"computed-torque law, which needs the paper's routing; identify without --simulators")
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")

@@ -18,6 +18,10 @@ and hides each effect by another mechanism than the candidate's:
   drum), cable creep (the cables lengthen in proportion to the integral of their tension), a
   camera scale error.
 
+Runs: :func:`simulate` (the paper's routing: a motor servo around the flat-output feed-forward of
+the identification shape) and :func:`simulate_reachable` (any routing, e.g. 10 joints and 4 cables:
+the nominal inverse-statics controller through the equilibria of tension waypoints).
+
 Each :class:`Spec` says what a correct diagnosis names (``expect``), where (0-based cable,
 joint, spring) and the magnitude to compare with, in the candidate's parameter units.
 """
