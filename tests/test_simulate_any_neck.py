@@ -191,8 +191,10 @@ def test_simulate_moves_the_ten_joint_four_cable_neck(tmp_path, capsys):
         for _, _, message in make_reader(fh).iter_messages(topics=["/neck/scene"]):
             entities = json.loads(message.data)["entities"]
             break
-    strips = [ls for e in entities for ls in e.get("lines", []) if ls.get("type") == 0]
-    assert len(strips) >= 4
+    truth = next(e for e in entities if e["id"].endswith("truth"))
+    strips = [ls for ls in truth["lines"] if ls["type"] == 0]            # one line strip per cable
+    # c1, c2 end at joint 5 (through 5 pulleys + the end), c3, c4 at the head (15 + the end)
+    assert [len(ls["points"]) for ls in strips] == [6, 6, 16, 16]
 
 
 def test_cable_excitation_on_known_arrays():
