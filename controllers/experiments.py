@@ -54,7 +54,9 @@ def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
 
     ``controller="elastic-lqr"`` runs :class:`controllers.elastic_lqr.ElasticLQRController` (law 2's
     feed-forward, LQR feedback on a neck observer: long necks on elastic cables) once instead of
-    the laws, labelled ``"elastic lqr"``.
+    the laws, labelled ``"elastic lqr"``; ``controller="inverse-statics"`` runs
+    :class:`controllers.underactuated.UnderactuatedController` (any routing; ``trajectory`` then
+    usually a :class:`controllers.underactuated.ReachablePath`), labelled ``"inverse statics"``.
 
     ``params`` are the plant's; ``controller_params`` the controller's model (default the same,
     e.g. ``params.replace(**{"geometry.r": 0.0})`` for a controller that ignores the pulleys).
@@ -71,8 +73,15 @@ def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
         return {"elastic lqr": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
                                                log_path=log_path("elastic-lqr") if log_path else None,
                                                run_info={**info, "controller": "elastic-lqr"})}
+    if controller == "inverse-statics":
+        from controllers.underactuated import UnderactuatedController
+        ctrl = UnderactuatedController(model, **dict(controller_kwargs or {}))
+        return {"inverse statics": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory,
+                                                   progress=progress,
+                                                   log_path=log_path("inverse-statics") if log_path else None,
+                                                   run_info={**info, "controller": "inverse-statics"})}
     if controller != "computed-torque":
-        raise ValueError(f"controller: unknown {controller!r} (computed-torque, elastic-lqr)")
+        raise ValueError(f"controller: unknown {controller!r} (computed-torque, elastic-lqr, inverse-statics)")
     out = {}
     for law in laws:
         label = f"law {int(law)}"

@@ -161,13 +161,22 @@ class UnderactuatedController:
 
     ``params``: the controller's model; ``f_s`` (m,) N the friction it believes (default the
     model's ``friction.f_s``); ``bandwidth`` rad/s of the motor loop (K_p = m_r w^2, K_d = 2 m_r w,
-    K_i = m_r w^3 / 4 with m_r = I_a (R/r_d)^2 the motor inertia seen along the cable);
+    K_i = ``integral`` m_r w^3 / 4 with m_r = I_a (R/r_d)^2 the motor inertia seen along the cable);
     ``estimate_every`` periods between two static pose estimates.
+
+    No integral action by default: the joint-space modes the cables cannot reach (N - m of them)
+    are damped only by the cables and the motors' friction, and the integrator's phase lag feeds
+    them.  On the 10-X, 4-cable neck held straight at 61 N after a 3 N kick, the largest joint error
+    per 1.5 s grew from 2.7 to 9.5 deg over 15 s with ``integral=1`` at 40 rad/s and fell from 5.2 to 2.2 deg
+    with ``integral=0`` and ``bandwidth=20`` (7.0 to 4.0 deg at 40 rad/s).  The feed-forward
+    tension already holds the pose; the proportional term's static error is (tension error) / K_p,
+    about 0.2 mm of cable per N at 20 rad/s.
     """
 
     law = 0     # not one of the paper's computed-torque laws (logs record it as 0)
 
-    def __init__(self, params: NeckParams, *, f_s=None, bandwidth: float = 40.0, estimate_every: int = 10):
+    def __init__(self, params: NeckParams, *, f_s=None, bandwidth: float = 20.0, integral: float = 0.0,
+                 estimate_every: int = 10):
         self.params = params
         m = params.n_cables
         self.f_s = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
@@ -175,11 +184,13 @@ class UnderactuatedController:
             raise ValueError(f"f_s: expected {m} finite values (one per cable), got {self.f_s!r}")
         if not (np.isfinite(bandwidth) and bandwidth > 0):
             raise ValueError(f"bandwidth: must be positive (rad/s), got {bandwidth}")
+        if not (np.isfinite(integral) and integral >= 0):
+            raise ValueError(f"integral: must be finite and >= 0, got {integral}")
         if int(estimate_every) < 1:
             raise ValueError(f"estimate_every: must be >= 1, got {estimate_every}")
         act = params.actuation
         m_r = act.reflected_inertia
-        self.gains = (m_r * bandwidth ** 2, 2 * m_r * bandwidth, m_r * bandwidth ** 3 / 4)
+        self.gains = (m_r * bandwidth ** 2, 2 * m_r * bandwidth, integral * m_r * bandwidth ** 3 / 4)
         self.ratio = act.r_d / act.R                    # cable length per motor radian
         self.dt = 1.0 / params.control.rate_hz
         self.estimate_every = int(estimate_every)

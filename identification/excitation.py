@@ -12,7 +12,14 @@ would show if it tracked it exactly, by inverting the model (the trajectory is a
 5. commanded forces from eq (29), f = t + f_friction(theta_dot) + (R/r_d) I_a theta_ddot.
 
 With sensor noise added (``synthetic_measurements``) this is a test bench for the whole
-identification chain that needs no plant.  ``observation_condition`` gives the BIRDy-style
+identification chain that needs no plant.  ``cable_excitation`` measures, per cable, what a run
+(predicted or logged) exercises: the tension range and the motor's speed range and reversals.
+
+A neck the paper's laws cannot move (m < N + 1 cables, or another routing) cannot follow the
+paper's joint-space trajectory; its identification experiment is planned in tension space through
+reachable, stable poses instead (:func:`controllers.reachable_paths.excitation_path`: §5.2.2's
+six-move pattern along the C and S directions at two pretension levels, joined by co-contraction
+moves), and ``neck-sim simulate --trajectory identification`` runs it on such a neck.  ``observation_condition`` gives the BIRDy-style
 excitation criterion (condition number of the column-scaled observation matrix, Briot & Gautier)
 of a predicted run, and ``optimise_identification_trajectory`` lowers it by changing the paper's
 trajectory's amplitudes and move times within the workspace and force limits.
@@ -32,7 +39,7 @@ from neck_sim.params import NeckParams
 from identification import regressors as reg
 from identification.preprocessing import Measurements, Prepared
 
-__all__ = ["PredictedRun", "predict_run", "synthetic_measurements", "prepared_from_prediction", "ExcitationQuality",
+__all__ = ["PredictedRun", "predict_run", "CableExcitation", "cable_excitation", "synthetic_measurements", "prepared_from_prediction", "ExcitationQuality",
            "excitation_quality", "sequences_trajectory", "paper_amplitudes", "OptimisedExcitation",
            "optimise_identification_trajectory"]
 
@@ -79,6 +86,32 @@ def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: f
     theta_ddot = np.gradient(theta_dot, dt, axis=0)
     force = tension + motor_friction(theta_dot, params) + ratio * act.I_a * theta_ddot
     return PredictedRun(t, alpha, theta, theta_dot, force, tension, x_c)
+
+
+class CableExcitation(NamedTuple):
+    """Per cable (m,): tension range (N), motor speed range (rad/s) and the number of times the
+    motor reverses (speed sign changes between samples faster than the threshold)."""
+
+    tension_min: np.ndarray
+    tension_max: np.ndarray
+    speed_min: np.ndarray
+    speed_max: np.ndarray
+    reversals: np.ndarray
+
+
+def cable_excitation(t, theta, tension, *, start: float = 1.0, moving: float = 0.5) -> CableExcitation:
+    """What a run exercises per cable: ``t`` (T,) s, motor angles ``theta`` (T, m) rad and tensions
+    (T, m) N; samples before ``start`` s (the cables' take-up) are left out, and a reversal counts
+    between samples whose speed exceeds ``moving`` rad/s (speed from central differences)."""
+    t = np.asarray(t, dtype=float)
+    keep = t >= start
+    speed = np.gradient(np.asarray(theta, dtype=float), t, axis=0)[keep]
+    ten = np.asarray(tension, dtype=float)[keep]
+    rev = []
+    for c in range(speed.shape[1]):
+        s = np.sign(speed[np.abs(speed[:, c]) > moving, c])
+        rev.append(int(np.count_nonzero(np.diff(s))))
+    return CableExcitation(ten.min(0), ten.max(0), speed.min(0), speed.max(0), np.array(rev))
 
 
 def synthetic_measurements(run: PredictedRun, params: NeckParams, rng: np.random.Generator, *,

@@ -1,4 +1,5 @@
-"""`neck-sim simulate`: the paper's control tests (§6.3, §7) and Table 3 on the simulated plant."""
+"""`neck-sim simulate`: the paper's control tests (§6.3, §7) and Table 3 on the simulated plant, and
+any neck of any routing moved by a controller that can move it (:mod:`controllers.selection`)."""
 
 from __future__ import annotations
 
@@ -8,19 +9,28 @@ from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_
 import os
 
 HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
-LQR_FROM_JOINTS = 9      # law 2 saturates from N = 9 and diverges at 10 on elastic cables (README, Known limitations)
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--trajectory", choices=("control-test", "identification"), default=None,
-                        help="reference (default control-test; identification with --table3)")
+    from controllers.selection import CONTROLLERS, LQR_FROM_JOINTS, TRAJECTORY_NAMES
+
+    parser.add_argument("--trajectory", default=None, metavar="NAME",
+                        help=f"reference: {', '.join(TRAJECTORY_NAMES)} (default control-test for the paper's laws, "
+                             "shapes -- C and S curves and a head reach through reachable poses -- for "
+                             "inverse-statics; identification with --table3; identification on a neck the paper's "
+                             "laws cannot move is its own excitation through reachable poses)")
     parser.add_argument("--law", type=int, nargs="+", choices=(1, 2, 3), default=None, metavar="{1,2,3}",
                         help="control law(s) of §6.3: 1 no friction, 2 friction, 3 friction + elastic "
                              "estimator (default 2; several run one after the other)")
-    parser.add_argument("--controller", choices=("computed-torque", "elastic-lqr"), default=None,
-                        help="computed-torque: the paper's laws (--law); elastic-lqr: law 2's feed-forward plus LQR "
-                             "feedback on a neck observer, for long necks on elastic cables (default: elastic-lqr "
-                             f"for N >= {LQR_FROM_JOINTS} on elastic cables without --law, else computed-torque)")
+    parser.add_argument("--controller", default=None, metavar="NAME",
+                        help="auto (default), " + "; ".join(f"{k}: {v}" for k, v in CONTROLLERS.items())
+                             + f". auto: inverse-statics for a routing other than the paper's, elastic-lqr for "
+                               f"N >= {LQR_FROM_JOINTS} on elastic cables without --law, else computed-torque")
+    parser.add_argument("--effect", action="append", default=None, metavar="NAME=VALUE[@INDEX]",
+                        help="simulate the neck with an effect of the vocabulary (`neck-sim effects`) added: VALUE "
+                             "sets its main parameter in SI units, @INDEX (1-based) puts it on one cable or joint, "
+                             "e.g. payload=0.05, dry_friction=25@2, actuation_delay=0.01, spring_error=0.5@3; "
+                             "repeatable; the log's run record lists them, its neck record stays nominal")
     parser.add_argument("-o", "--output", metavar="LOG",
                         help="MCAP log path (several runs: the run's label is added before .mcap); "
                              "default logs/simulate-<trajectory>-<run>-<time>.mcap")
@@ -55,7 +65,6 @@ def add_live_arguments(parser) -> None:
                         help="with --live: the WebSocket port on 127.0.0.1 (default 8765; 0: a free port)")
 
 
-
 def _log_namer(args, trajectory: str, several: bool):
     from controllers.experiments import default_log_path
     if args.no_log:
@@ -71,63 +80,90 @@ def _log_namer(args, trajectory: str, several: bool):
     return lambda label: f"{args.output[:-5]}-{label}.mcap"
 
 
+def _check_options(args, controller: str) -> None:
+    """Options that contradict the chosen controller or each other: one line each."""
+    if args.table3 and (args.rigid_cables or args.no_pulleys):
+        raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")
+    if controller == "elastic-lqr" and (args.law or args.table3 or args.cable_model):
+        raise ValueError("--controller elastic-lqr has its own feedback: drop --law, --table3 and --cable-model")
+    if controller == "inverse-statics":
+        given = [opt for opt, v in (("--law", args.law), ("--table3", args.table3), ("--cable-model", args.cable_model),
+                                    ("--t-min", args.t_min is not None), ("--rigid-cables", args.rigid_cables)) if v]
+        if given:
+            raise ValueError(f"--controller inverse-statics holds poses through the cables' elasticity with its own "
+                             f"feedback and tensions: drop {', '.join(given)}")
+    if args.table3 and len(args.law or [2]) != 1:
+        raise ValueError("--table3 runs one law (give a single --law)")
+
+
+def _plant_factory(effects, timestep):
+    """Plants with the ``--effect`` effects and the controller's physics timestep (None: the
+    default plant)."""
+    if not effects.active() and timestep is None:
+        return None
+    from neck_sim.plant import Plant
+    return lambda params, rigid_cables, seed: Plant(params, effects=effects, seed=seed, timestep=timestep,
+                                                    rigid_cables=rigid_cables)
+
+
 def run(args) -> int:
     if args.live:
         return _run_live(args)
     from controllers import experiments as ex
-    from controllers.trajectories import make_trajectory
+    from controllers.selection import choose_controller, make_run_trajectory, plant_timestep
+    from neck_sim.effect_option import parse_effects
 
     check_paths(inputs={"--params": args.params}, files={"-o": args.output, "--json": args.json},
                 dirs={"--plots": args.plots})
     params = params_from_args(args)
-    if args.table3 and (args.rigid_cables or args.no_pulleys):
-        raise ValueError("--table3 chooses plant cables and controller pulleys itself; drop --rigid-cables/--no-pulleys")
-    controller = args.controller
-    if controller is None:
-        controller = ("elastic-lqr" if params.n_joints >= LQR_FROM_JOINTS and not (args.law or args.table3
-                      or args.rigid_cables or args.cable_model) else "computed-torque")
-        if controller == "elastic-lqr":
-            print(f"N = {params.n_joints} on elastic cables: the elastic LQR (the paper's laws lose necks this "
-                  "long; --law 2 to run law 2 anyway)")
+    effects = parse_effects(args.effect, params)
+    choice = choose_controller(params, args.controller, laws=args.law, rigid_cables=args.rigid_cables,
+                               cable_model=args.cable_model, table3=args.table3)
+    controller = choice.name
+    _check_options(args, controller)
+    print(choice.line)
+    if effects.active():
+        print(f"plant effects: {', '.join(args.effect)} (the log's run record lists them; its neck record is nominal)")
     lqr = controller == "elastic-lqr"
-    if lqr and (args.law or args.table3 or args.cable_model):
-        raise ValueError("--controller elastic-lqr has its own feedback: drop --law, --table3 and --cable-model")
     laws = args.law or [2]
-    if args.table3 and len(laws) != 1:
-        raise ValueError("--table3 runs one law (give a single --law)")
-    name = args.trajectory or ("identification" if args.table3 else "control-test")
-    traj = make_trajectory(name, params, args.duration_scale)
+    name = args.trajectory or ("identification" if args.table3 else None)
+    traj = make_run_trajectory(name, params, controller, args.duration_scale)
+    name = name or traj.name.split(" ")[0]
     kwargs = {}
     if args.t_min is not None:
         kwargs["t_min"] = args.t_min
     if args.cable_model is not None:
         kwargs["cable_model"] = args.cable_model
     progress = not args.no_progress
-    print(f"{traj.name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}")
+    factory = _plant_factory(effects, plant_timestep(controller))
+    print(f"{traj.name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}"
+          + ("" if params.n_cables == params.n_joints + 1 else f", {params.n_cables} cables"))
 
     if args.table3:
         results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,
-                            seed=args.seed, controller_kwargs=kwargs)
+                            seed=args.seed, controller_kwargs=kwargs, plant_factory=factory)
         labelled = {f"{kind} cables, {'pulleys' if pul else 'no pulleys'}": res for (kind, pul), res in results.items()}
         print(ex.format_control_table(labelled, compare_with_paper=False))
         print()
         print(ex.format_table3(results))
     else:
         ctrl_params = params.replace(**{"geometry.r": 0.0}) if args.no_pulleys else params
+        several = len(laws) > 1 and controller == "computed-torque"
         try:
             labelled = ex.control_tests(
-                params, traj, laws, log_path=_log_namer(args, name, len(laws) > 1 and not lqr), progress=progress,
+                params, traj, laws, log_path=_log_namer(args, name, several), progress=progress,
                 seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs,
-                controller=controller)
+                controller=controller, plant_factory=factory)
         except RuntimeError as exc:
-            if lqr or args.rigid_cables or params.n_joints < 6:
+            if controller != "computed-torque" or args.rigid_cables or params.n_joints < 6:
                 raise
             # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
             raise RuntimeError(f"{exc} (on elastic cables the paper's laws lose necks of 6 or more joints: "
                                "try --controller elastic-lqr)") from exc
         # the paper's §7 numbers only make sense beside the same experiment
         same = (name == "control-test" and args.duration_scale == 1.0 and not args.rigid_cables
-                and not args.no_pulleys and params.n_joints == 3 and not kwargs and not args.params and not lqr)
+                and not args.no_pulleys and params.n_joints == 3 and not kwargs and not args.params and not lqr
+                and controller == "computed-torque" and not effects.active())
         print(ex.format_control_table(labelled, compare_with_paper=same))
     for label, res in labelled.items():
         if res.log_path:
