@@ -136,10 +136,21 @@ def test_bad_inputs_are_one_line(capsys, files):
         _assert_one_line_error(code, err, argv)
 
 
-def test_multi_line_message_keeps_its_content(capsys, files):
-    code, _, err = _run(capsys, ["simulate", "--params", str(files / "mixed4.json"), "--law", "1", "--no-log",
-                                 "--no-progress"])
-    _assert_one_line_error(code, err, "simulate")
+def test_multi_line_message_keeps_its_content(capsys, monkeypatch):
+    """A library error whose message spans lines (a routing's description, one line per cable) is
+    printed on one line with every part kept."""
+    from neck_sim.cli import params_cmd
+    from neck_sim.params import example_params
+
+    routing = example_params("mixed4").routing.describe()
+    assert routing.count("\n") >= 3
+
+    def refuse(args):
+        raise ValueError(f"this routing cannot be used here:\n{routing}")
+
+    monkeypatch.setattr(params_cmd, "run", refuse)
+    code, _, err = _run(capsys, ["params"])
+    _assert_one_line_error(code, err, "params")
     for cable in ("c1:", "c2:", "c3:", "c4:"):      # every line of the routing table is still there
         assert cable in err
 
