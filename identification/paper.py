@@ -30,9 +30,12 @@ import numpy as np
 from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular, static_elongation
 from neck_sim.params import NeckParams
 
+from identification import gaps as gaps_mod
 from identification import regressors as reg
+from identification import uncertainty as unc
 from identification.least_squares import LSResult, solve_weighted
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
+from identification.uncertainty import N_BOOTSTRAP
 
 __all__ = ["PAPER", "IdentificationSettings", "IdentificationResult", "identify", "identify_log",
            "reconstruct_elongation", "format_tables", "CABLE_MODELS"]
@@ -70,6 +73,8 @@ class IdentificationSettings:
     c_a_estimator: float | None = None  # N s/m for eq (58); None = params.control.c_a_estimator
     reconstruct_alpha: bool = True     # §5.5 (costs about 1 s per minute of log)
     preprocess: PreprocessSettings = field(default_factory=PreprocessSettings)
+    bootstrap: int = N_BOOTSTRAP       # camera-noise replicates of the calibrated sigmas (0: HAC only)
+    seed: int = 0                      # of the bootstrap's noise
 
     def __post_init__(self):
         for name in ("weight", "slack_margin_s"):
@@ -78,6 +83,8 @@ class IdentificationSettings:
                 raise ValueError(f"{name}: must be {'positive' if name == 'weight' else '>= 0'}, got {v!r}")
         if not np.isfinite(self.slack_threshold):
             raise ValueError(f"slack_threshold: must be finite, got {self.slack_threshold!r}")
+        if not (isinstance(self.bootstrap, (int, np.integer)) and (self.bootstrap == 0 or self.bootstrap >= 2)):
+            raise ValueError(f"bootstrap: must be 0 or an integer >= 2, got {self.bootstrap!r}")
         if self.c_a_estimator is not None and not self.c_a_estimator > 0:
             raise ValueError(f"c_a_estimator: must be positive, got {self.c_a_estimator!r}")
 
@@ -103,6 +110,8 @@ class IdentificationResult:
     settings: IdentificationSettings
     series: dict = field(default_factory=dict)
     notes: tuple = ()
+    uncertainty: dict = field(default_factory=dict)   # model name -> uncertainty.Uncertainty
+    gaps: tuple = ()                                    # one line per parameter not identified
 
     @property
     def f_s(self) -> np.ndarray:
@@ -124,6 +133,10 @@ class IdentificationResult:
             "alpha_error_deg": self.alpha_error_deg,
             "taut_fraction": None if self.taut_fraction is None else self.taut_fraction.tolist(),
             "notes": list(self.notes), "paper": PAPER,
+            "uncertainty": {k: u.to_dict() for k, u in self.uncertainty.items()},
+            "not_identified": sorted({f"{k}: {n}" for k, u in self.uncertainty.items()
+                                      for n, ok in zip(u.names, u.identified) if not ok}),
+            "gaps": list(self.gaps),
         }
         return out
 
@@ -264,8 +277,43 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         c_a = s.c_a_estimator or params.control.c_a_estimator
         alpha_error, a_series = _alpha_reconstruction(prep, params, cable_models, f_s, c_a, notes)
         series.update(a_series)
+    fits = {"friction": friction, "elastic": elastic, "variable": variable}
+    unc, gaps = calibrated_uncertainty(prep, params, s, fits, dyn, taut, t_rhs)
     return IdentificationResult(friction, elastic, variable, torque_error, tension_error, alpha_error,
-                                taut.mean(axis=0), prep, s, series, tuple(notes))
+                                taut.mean(axis=0), prep, s, series, tuple(notes), unc, tuple(gaps))
+
+
+def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: IdentificationSettings, fits: dict,
+                           dyn: reg.Dynamics, taut, tension) -> tuple[dict, list]:
+    """:class:`~identification.uncertainty.Uncertainty` per fitted model, and the gap lines.
+
+    ``fits`` maps model names to their :class:`LSResult` (or None); ``tension`` (S, N+1) N is eq
+    (55)'s with the fitted friction.  See :mod:`identification.uncertainty` and
+    :mod:`identification.gaps`.
+    """
+    S, N = prep.n_samples, params.n_joints
+    models = tuple(m for m in ("elastic", "variable") if fits.get(m) is not None)
+    reps = (unc.camera_noise_bootstrap(prep, params, taut, weight=s.weight, models=models, settings=s.preprocess,
+                                       n=s.bootstrap, seed=s.seed) if s.bootstrap else {})
+    f_s = (fits.get("elastic") or fits["friction"]).group("f_s")
+    out, gaps = {}, []
+    for name, res in fits.items():
+        if res is None:
+            continue
+        if name == "friction":
+            W, rows = reg.friction_model(prep, params, dyn).W, unc.row_samples(S, N, tension=False)
+        elif name == "elastic":
+            W, rows = reg.elastic_model(prep, params, weight=s.weight, taut=taut, dyn=dyn).W, unc.row_samples(S, N, taut)
+        else:
+            W = reg.variable_stiffness_model(prep, params, f_s, taut=taut).W
+            rows = unc.row_samples(S, N, taut, torque=False)
+        u = unc.calibrate(res, W, rows, S, reps.get(name), camera_noise=params.sensors.camera_noise)
+        missing = gaps_mod.not_identified(u.value, u.sigma)
+        u = u.with_identified(~missing)
+        gaps += gaps_mod.gap_lines(name, u.names, u.value, u.sigma, missing, tension=tension, x_c_dot=prep.x_c_dot,
+                                   theta_dot=prep.theta_dot, taut=taut)
+        out[name] = u
+    return out, gaps
 
 
 def identify_log(log, settings: IdentificationSettings | None = None, *, params: NeckParams | None = None,
@@ -351,5 +399,9 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None)
               + f"; {result.prepared.n_samples} samples at {result.prepared.rate_hz:.2f} Hz"]
     if result.taut_fraction is not None:
         lines.append("taut samples per cable: " + ", ".join(f"{100 * f:.1f} %" for f in result.taut_fraction))
+    if result.uncertainty:
+        lines += ["", unc.format_uncertainty(result.uncertainty)]
+    if result.gaps:
+        lines += ["", "Not identified by this log (what is missing, what to record):"] + [f"  {g}" for g in result.gaps]
     lines += list(result.notes)
     return "\n".join(lines)
