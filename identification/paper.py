@@ -296,7 +296,7 @@ def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: Identification
     reps = (unc.camera_noise_bootstrap(prep, params, taut, weight=s.weight, models=models, settings=s.preprocess,
                                        n=s.bootstrap, seed=s.seed) if s.bootstrap else {})
     f_s = (fits.get("elastic") or fits["friction"]).group("f_s")
-    out, gaps = {}, []
+    out, missing_by_model = {}, []
     for name, res in fits.items():
         if res is None:
             continue
@@ -309,11 +309,10 @@ def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: Identification
             rows = unc.row_samples(S, N, taut, torque=False)
         u = unc.calibrate(res, W, rows, S, reps.get(name), camera_noise=params.sensors.camera_noise)
         missing = gaps_mod.not_identified(u.value, u.sigma)
-        u = u.with_identified(~missing)
-        gaps += gaps_mod.gap_lines(name, u.names, u.value, u.sigma, missing, tension=tension, x_c_dot=prep.x_c_dot,
-                                   theta_dot=prep.theta_dot, taut=taut)
-        out[name] = u
-    return out, gaps
+        out[name] = u.with_identified(~missing)
+        missing_by_model.append((name, u.names, u.value, u.sigma, missing))
+    return out, gaps_mod.gap_lines(missing_by_model, tension=tension, x_c_dot=prep.x_c_dot, theta_dot=prep.theta_dot,
+                                   taut=taut)
 
 
 def identify_log(log, settings: IdentificationSettings | None = None, *, params: NeckParams | None = None,

@@ -27,6 +27,9 @@ def add_arguments(parser) -> None:
                         help="tension (eq 41) below which a cable sample counts as slack and is left out")
     add_force_range_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
+    parser.add_argument("--bootstrap", type=int, default=None, metavar="N",
+                        help="camera-noise replicates behind the calibrated sigmas (default 40; 0: HAC sigma only, "
+                             "no bias correction); see docs/identification.md")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
                              "identified plant and compare with the log (§5.6, figure 9; minutes)")
@@ -42,8 +45,11 @@ def run(args) -> int:
     from neck_sim.atomic import atomic_write_json
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    if args.bootstrap is not None and (args.bootstrap < 0 or args.bootstrap == 1):
+        raise ValueError(f"--bootstrap: must be 0 or at least 2 replicates, got {args.bootstrap}")
+    extra = {} if args.bootstrap is None else {"bootstrap": args.bootstrap}
     settings = IdentificationSettings(
-        weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
+        **extra, weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
     log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
