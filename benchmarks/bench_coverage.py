@@ -17,7 +17,7 @@ and the bias of the least-squares and corrected values over their spread across 
 elastic model's k and c_a have no true value (a linear fit of a tension-dependent stiffness).
 The time of one identification with and without the bootstrap is printed as a ratio.
 
-    python benchmarks/bench_coverage.py                       # 30 seeds, both logs (about 10 min on 2 cores)
+    python benchmarks/bench_coverage.py       # 30 + 20 seeds (about 15 min of CPU)
     python benchmarks/bench_coverage.py --write-docs docs/identification.md
 """
 
@@ -130,6 +130,7 @@ def write_docs(path: str, text: str) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=30)
+    ap.add_argument("--seeds-long", type=int, default=20, help="seeds of the 85 s identification log")
     ap.add_argument("--replicates", type=int, default=40, help="camera-noise bootstrap replicates per log")
     ap.add_argument("--logs", default="control-test,identification")
     ap.add_argument("--write-docs", metavar="MD", help="write the table between the coverage markers of MD")
@@ -137,12 +138,15 @@ def main(argv=None) -> int:
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.logs.split(","):
-            r = run_log(name.strip(), args.seeds, args.replicates, tmp)
+            name = name.strip()
+            r = run_log(name, args.seeds_long if name == "identification" else args.seeds, args.replicates, tmp)
             results.append(r)
-            print(f"{r['log']}: identify with calibrated sigmas {r['identify_s']:.2f} s, "
-                  f"eq (50) and HAC only {r['identify_eq50_hac_s']:.2f} s "
-                  f"(x{r['identify_s'] / r['identify_eq50_hac_s']:.1f})", flush=True)
+            print(table([r]), flush=True)
     text = table(results)
+    for r in results:
+        text += (f"\nTime of one identification ({r['log']}, no alpha_hat): {r['identify_s']:.2f} s with the "
+                 f"calibrated sigmas, {r['identify_eq50_hac_s']:.2f} s with eq (50) and HAC only "
+                 f"(x{r['identify_s'] / r['identify_eq50_hac_s']:.1f}).\n")
     print(text)
     if args.write_docs:
         write_docs(args.write_docs, text)
