@@ -73,11 +73,13 @@ def test_command_prints_the_gaps_and_marks_them_in_json(tmp_path, capsys):
         for i in range(meas.t_camera.size):
             w.camera(meas.t_camera[i], meas.alpha_camera[i])
     out = tmp_path / "ident.json"
-    assert main(["identify", str(log), "--no-alpha", "--bootstrap", "12", "--json", str(out)]) == 0
+    # the flat-output model commands slightly negative forces on a slack-free gentle move
+    assert main(["identify", str(log), "--no-alpha", "--bootstrap", "12", "--json", str(out),
+                 "--accept-out-of-range-forces"]) == 0
     text = capsys.readouterr().out
     assert "Not identified by this log" in text and "eq (50) sigma" in text
     data = json.loads(out.read_text())
     var = data["uncertainty"]["variable"]["parameters"]
     assert var["c_a(1)"]["identified"] is False and "sigma_eq50_paper" in var["k(1)"]
     assert "variable: c_a(1)" in data["not_identified"] and data["gaps"]
-    assert main(["identify", str(log), "--bootstrap", "1"]) == 2
+    assert main(["identify", str(log), "--bootstrap", "1", "--accept-out-of-range-forces"]) == 2
