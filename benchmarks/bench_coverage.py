@@ -19,6 +19,10 @@ The time of one identification with and without the bootstrap is printed as a ra
 
     python benchmarks/bench_coverage.py       # 30 + 20 seeds (about 15 min of CPU)
     python benchmarks/bench_coverage.py --write-docs docs/identification.md
+    # or one process per log, then the table from both:
+    python benchmarks/bench_coverage.py --logs control-test --json ct.json &
+    python benchmarks/bench_coverage.py --logs identification --json id.json; wait
+    python benchmarks/bench_coverage.py --from-json ct.json id.json --write-docs docs/identification.md
 """
 
 from __future__ import annotations
@@ -134,10 +138,19 @@ def main(argv=None) -> int:
     ap.add_argument("--replicates", type=int, default=40, help="camera-noise bootstrap replicates per log")
     ap.add_argument("--logs", default="control-test,identification")
     ap.add_argument("--write-docs", metavar="MD", help="write the table between the coverage markers of MD")
+    ap.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    ap.add_argument("--from-json", metavar="PATH", nargs="+",
+                    help="tabulate results saved by --json (e.g. one process per log) instead of running")
     args = ap.parse_args(argv)
     results = []
+    if args.from_json:
+        import json
+
+        for path in args.from_json:
+            with open(path, encoding="utf-8") as fh:
+                results += json.load(fh)
     with tempfile.TemporaryDirectory() as tmp:
-        for name in args.logs.split(","):
+        for name in [] if args.from_json else args.logs.split(","):
             name = name.strip()
             r = run_log(name, args.seeds_long if name == "identification" else args.seeds, args.replicates, tmp)
             results.append(r)
@@ -148,6 +161,10 @@ def main(argv=None) -> int:
                  f"calibrated sigmas, {r['identify_eq50_hac_s']:.2f} s with eq (50) and HAC only "
                  f"(x{r['identify_s'] / r['identify_eq50_hac_s']:.1f}).\n")
     print(text)
+    if args.json:
+        from neck_sim.atomic import atomic_write_json
+
+        atomic_write_json(args.json, results)
     if args.write_docs:
         write_docs(args.write_docs, text)
     return 0
