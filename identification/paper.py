@@ -133,6 +133,8 @@ class IdentificationResult:
             "alpha_error_deg": self.alpha_error_deg,
             "taut_fraction": None if self.taut_fraction is None else self.taut_fraction.tolist(),
             "notes": list(self.notes), "paper": PAPER,
+            "models_sigma": "eq (50), the paper's (independent residuals, exact regressors: 2-4x optimistic on "
+                            "filtered logs); the calibrated values and sigmas are under 'uncertainty'",
             "uncertainty": {k: u.to_dict() for k, u in self.uncertainty.items()},
             "not_identified": sorted({f"{k}: {n}" for k, u in self.uncertainty.items()
                                       for n, ok in zip(u.names, u.identified) if not ok}),
