@@ -7,7 +7,8 @@ the joint accelerations come from the camera's angles: errors in variables, whic
 estimate as well as spread it).  Over camera-noise seeds eq (50)'s sigmas are 2-4x smaller than
 the spread of the estimates, and the noise biases k and lambda by about one spread.
 
-Two estimates; the larger per parameter is reported, on the bias-corrected value:
+Two estimates; the larger per parameter is reported, on the bias-corrected value (plus, for the
+elastic model's f_s, a model-form term: see ``identification.paper.calibrated_uncertainty``):
 
 * **Camera-noise bootstrap** (``camera_noise_bootstrap``): the log is identified again ``n``
   times with the camera's frames replaced by the filtered camera angles plus fresh Gaussian noise
@@ -50,7 +51,7 @@ class Uncertainty:
     ``value_ls`` the least-squares value (eq 49), ``sigma_eq50`` eq (50)'s sigma; ``bias`` the
     camera-noise bias (0 without bootstrap), ``value`` = value_ls - bias; ``sigma_bootstrap``
     (bias included, see the module docstring), ``sigma_hac``; ``sigma`` = the larger of the two
-    (units of the parameter).  ``identified`` False where the data do not determine the
+    (units of the parameter), with ``sigma_model`` in quadrature when set.  ``identified`` False where the data do not determine the
     parameter (:mod:`identification.gaps`).
     """
 
@@ -67,6 +68,7 @@ class Uncertainty:
     n_bootstrap: int
     camera_noise: float
     identified: np.ndarray
+    sigma_model: np.ndarray | None = None     # model-form term in sigma (``with_model_term``), or None
 
     def group(self, attr: str, symbol: str) -> np.ndarray:
         """``attr`` (e.g. "value", "sigma") of the parameters named ``symbol(i)``, in cable order."""
@@ -80,6 +82,14 @@ class Uncertainty:
         kw["identified"] = np.asarray(identified, bool)
         return Uncertainty(**kw)
 
+    def with_model_term(self, term) -> "Uncertainty":
+        """``term`` (p,) in the parameters' units added in quadrature to ``sigma``: a bias of the
+        model's form that neither the residuals (HAC) nor the camera noise (bootstrap) show."""
+        kw = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        kw["sigma_model"] = np.abs(np.asarray(term, dtype=float))
+        kw["sigma"] = np.hypot(np.maximum(self.sigma_bootstrap, self.sigma_hac), kw["sigma_model"])
+        return Uncertainty(**kw)
+
     def to_dict(self) -> dict:
         params = {}
         for i, n in enumerate(self.names):
@@ -87,6 +97,8 @@ class Uncertainty:
                          "identified": bool(self.identified[i]), "value_least_squares": float(self.value_ls[i]),
                          "noise_bias": float(self.bias[i]), "sigma_bootstrap": float(self.sigma_bootstrap[i]),
                          "sigma_hac": float(self.sigma_hac[i]), "sigma_eq50_paper": float(self.sigma_eq50[i])}
+            if self.sigma_model is not None:
+                params[n]["sigma_model_form"] = float(self.sigma_model[i])
         return {"parameters": params, "hac_bandwidth_samples": self.hac_bandwidth,
                 "bootstrap_replicates": self.n_bootstrap, "camera_noise_rad": self.camera_noise}
 
@@ -243,11 +255,14 @@ def format_uncertainty(by_model: dict) -> str:
         return ""
     head = (f"{'':10} {'least squares':>13} {'eq (50) sigma':>13} {'noise bias':>11} {'value':>11} "
             f"{'sigma':>10} {'rel':>7} {'HAC':>10} {'bootstrap':>10}  identified")
-    lines = ["Calibrated uncertainty: value = least squares - camera-noise bias; sigma = max(HAC, bootstrap); "
-             "eq (50) sigma is the paper's (independent residuals, 2-4x optimistic here)"]
+    lines = ["Calibrated uncertainty: value = least squares - camera-noise bias; sigma = max(HAC, bootstrap), "
+             "with the model-form term in quadrature where one is given; eq (50) sigma is the paper's "
+             "(independent residuals, 2-4x optimistic here)"]
     for model, u in by_model.items():
         lines += [f"{model} model (HAC bandwidth {u.hac_bandwidth} samples, {u.n_bootstrap} bootstrap replicates "
                   f"at camera noise {np.degrees(u.camera_noise):.2g} deg)", head]
+        if u.sigma_model is not None and np.any(u.sigma_model):
+            lines.append("  model-form term: " + ", ".join(f"{n} {m:.3g}" for n, m in zip(u.names, u.sigma_model) if m))
         for i, n in enumerate(u.names):
             rel = 100 * u.sigma[i] / abs(u.value[i]) if u.value[i] != 0 else np.inf
             lines.append(f"{n:10} {u.value_ls[i]:13.5g} {u.sigma_eq50[i]:13.3g} {u.bias[i]:11.3g} {u.value[i]:11.5g} "
