@@ -280,24 +280,23 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         alpha_error, a_series = _alpha_reconstruction(prep, params, cable_models, f_s, c_a, notes)
         series.update(a_series)
     fits = {"friction": friction, "elastic": elastic, "variable": variable}
-    unc, gaps = calibrated_uncertainty(prep, params, s, fits, dyn, taut, t_rhs)
+    uncertainty, gap_lines = calibrated_uncertainty(prep, params, s, fits, dyn, taut, f_s, t_rhs)
     return IdentificationResult(friction, elastic, variable, torque_error, tension_error, alpha_error,
-                                taut.mean(axis=0), prep, s, series, tuple(notes), unc, tuple(gaps))
+                                taut.mean(axis=0), prep, s, series, tuple(notes), uncertainty, tuple(gap_lines))
 
 
 def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: IdentificationSettings, fits: dict,
-                           dyn: reg.Dynamics, taut, tension) -> tuple[dict, list]:
+                           dyn: reg.Dynamics, taut, f_s, tension) -> tuple[dict, list]:
     """:class:`~identification.uncertainty.Uncertainty` per fitted model, and the gap lines.
 
-    ``fits`` maps model names to their :class:`LSResult` (or None); ``tension`` (S, N+1) N is eq
-    (55)'s with the fitted friction.  See :mod:`identification.uncertainty` and
+    ``fits`` maps model names to their :class:`LSResult` (or None); ``f_s`` (N+1,) N the friction
+    the variable-stiffness model was fitted with; ``tension`` (S, N+1) N is eq (55)'s with it.  See :mod:`identification.uncertainty` and
     :mod:`identification.gaps`.
     """
     S, N = prep.n_samples, params.n_joints
     models = tuple(m for m in ("elastic", "variable") if fits.get(m) is not None)
     reps = (unc.camera_noise_bootstrap(prep, params, taut, weight=s.weight, models=models, settings=s.preprocess,
                                        n=s.bootstrap, seed=s.seed) if s.bootstrap else {})
-    f_s = (fits.get("elastic") or fits["friction"]).group("f_s")
     out, missing_by_model = {}, []
     for name in ("friction", "elastic", "variable"):
         res = fits.get(name)
