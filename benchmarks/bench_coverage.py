@@ -157,7 +157,8 @@ def main(argv=None) -> int:
             print(table([r]), flush=True)
     text = table(results)
     for r in results:
-        text += (f"\nTime of one identification ({r['log']}, no alpha_hat): {r['identify_s']:.2f} s with the "
+        text += (f"\nWall-clock time of one identification ({r['log']}, no alpha_hat, median over the seeds, "
+                 f"on the machine as loaded during the run): {r['identify_s']:.2f} s with the "
                  f"calibrated sigmas, {r['identify_eq50_hac_s']:.2f} s with eq (50) and HAC only "
                  f"(x{r['identify_s'] / r['identify_eq50_hac_s']:.1f}).\n")
     print(text)
