@@ -8,7 +8,7 @@ motor topics bit for bit; only the camera frames differ), so the run itself does
 the seed.  Each log is identified with the calibrated sigmas (fewer bootstrap replicates than the
 CLI's 40, for time); per parameter group the share of estimates within 1 and 2 sigma of the truth
 must reach 55 % and 88 % (nominal 68 % and 95 %).  The paper's eq (50) sigmas, measured on the
-same logs, must fail that bar (they cover about 20 % and 45 %): the test tells the two apart.
+same logs, must fail that bar (they cover 17-28 % and 36-68 %): the test tells the two apart.
 
 The elastic model's k and c_a have no true value (a linear fit of a tension-dependent stiffness)
 and are not checked; c_a of the variable model is not identified on this log (checked: marked so).
