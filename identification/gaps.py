@@ -54,9 +54,9 @@ def gap_lines(fits, *, tension, x_c_dot, theta_dot, taut) -> list[str]:
         t = tension[taut[:, i], i] if taut[:, i].any() else np.zeros(1)
         lo, hi = (float(x) for x in np.percentile(t, [5, 95]))
         if sym in ("lambda", "k"):
-            other = "k" if sym == "lambda" else "lambda"
+            why = f"cannot be separated from k({i + 1})" if sym == "lambda" else "is not identified"
             what = (f"cable {i + 1}'s tension spans only {lo:.0f}-{hi:.0f} N over its taut samples "
-                    f"({100 * taut[:, i].mean():.0f} % of the log): {name} cannot be separated from {other}({i + 1}) "
+                    f"({100 * taut[:, i].mean():.0f} % of the log): {name} {why} "
                     f"({got}); record moves that keep it taut and pull it to {max(2 * hi, 60.0):.0f} N")
         elif sym == "c_a":
             v = np.abs(x_c_dot[taut[:, i], i]) if taut[:, i].any() else np.zeros(1)
