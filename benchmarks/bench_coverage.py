@@ -96,14 +96,24 @@ def run_log(name: str, seeds: int, replicates: int, tmp: str) -> dict:
             row[label] = float(np.mean(np.abs(v.mean(0) - tr) / v.std(0, ddof=1)))
         row["identified"] = float(np.mean([u[model].group("identified", sym) for u in runs]))
         rows.append(row)
-    return {"log": name, "duration_s": duration, "seeds": seeds, "replicates": replicates, "rows": rows,
+    return {"log": name, "commit": _commit(), "duration_s": duration, "seeds": seeds, "replicates": replicates,
+            "rows": rows,
             "identify_s": float(np.median(t_cal)), "identify_eq50_hac_s": float(np.median(t_plain))}
+
+
+def _commit() -> str:
+    """The checkout's commit (with "+changes" when its tracked files differ from it)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    run = lambda *a: subprocess.run(["git", *a], capture_output=True, text=True, cwd=here).stdout.strip()  # noqa: E731
+    commit = run("rev-parse", "--short", "HEAD") or "unknown"
+    return commit + ("+changes" if run("status", "--porcelain", "--untracked-files=no") else "")
 
 
 def table(results) -> str:
     lines = []
     for r in results:
         lines += [f"**{r['log']}** ({r['duration_s']:.0f} s log, {r['seeds']} camera-noise seeds, "
+                  f"code at commit {r.get('commit', 'unknown')}, "
                   f"{r['replicates']} bootstrap replicates; share within 1 sigma / 2 sigma of the plant's value, "
                   f"nominal 0.68 / 0.95)", "",
                   "| parameters | " + " | ".join(m[0] for m in METHODS) + " | bias/spread, LS -> corrected | identified |",
@@ -124,9 +134,7 @@ def write_docs(path: str, text: str) -> None:
         raise SystemExit(f"{path}: no {START} ... {END} markers to write the table between")
     head, rest = doc.split(START, 1)
     _, tail = rest.split(END, 1)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                            cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() or "unknown"
-    body = (f"\n<!-- written by benchmarks/bench_coverage.py at commit {commit}; do not edit by hand -->\n\n"
+    body = ("\n<!-- written by benchmarks/bench_coverage.py; do not edit by hand -->\n\n"
             f"{text}\n")
     atomic_write_bytes(path, (head + START + body + END + tail).encode("utf-8"))
 
