@@ -38,6 +38,7 @@ from controllers.computed_torque import (ComputedTorqueController, ControllerSta
                                         output_slices, reference_table, step_error)
 from controllers.trajectories import Trajectory
 from neck_sim.jit import kernel
+from neck_sim.live import active as active_live_view
 from neck_sim.plant import _DISPATCH, Plant, PlantBatch, clip_forces, delayed_controls, truth_columns
 from neck_sim.replay import plant_run_info
 
@@ -338,6 +339,24 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     start = None if batch is None else batch.k.copy()
     position = {i: j for j, i in enumerate(batched)}         # run -> its row in the batch
     writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
+    live = active_live_view() if K == 1 else None
+    shown = [0, 0]            # periods and camera frames of the run already sent to the live view
+    if live is not None:
+        live.new_run()
+        live_every = max(1, int(rate / live.rate_hz))        # periods per scene frame
+
+    def show(k1: int) -> None:
+        """Periods [shown, k1) of the (single) run to the live view: between compiled chunks."""
+        k0, f0 = shown
+        j = position.get(0)
+        t = rec_t[0, k0:k1] if j is None else (start[j] + np.arange(k0, k1) * batch.nsub) * batch.dt
+        rec = {name: rec_truth[0, k0:k1, sl] for name, sl in truth_cols.items()}
+        rec["theta"] = rec_theta[0, k0:k1]
+        cols = {name: outs[0, k0:k1, sl] for name, sl in columns.items()}
+        cam_t, cam_alpha = cameras[0]
+        _write_topics(live, t, rec, cols, refs[0].alpha[k0:k1], np.asarray(cam_t[f0:], dtype=float),
+                      np.asarray(cam_alpha[f0:], dtype=float).reshape(-1, n))
+        shown[:] = [k1, len(cam_t)]
 
     def fail(i: int, t: float, exc: Exception) -> None:
         err = RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}")
@@ -368,6 +387,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                            batch.delay_line(), step_fn, step_args)
         k = 0
         while k < steps:
+            if live is not None and k - shown[0] >= live_every and alive[0]:
+                show(k)
             # stage: how much of period k is done (0 nothing, 1 recorded and controlled, 2 also stepped)
             stage = 0
             if fused:
@@ -438,6 +459,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             k += 1
             bar.update(1)
         bar.close()
+        if live is not None and alive[0]:
+            show(steps)
         if batch is not None:
             rec_t[rows] = (start[:, None] + batch.nsub * np.arange(steps)) * batch.dt
         results = []
@@ -468,6 +491,16 @@ def _store(row: np.ndarray, out, columns: dict) -> None:
         row[sl] = getattr(out, name)
 
 
+def _write_topics(writer, t, rec: dict, cols: dict, alpha_d, camera_t, camera_alpha) -> None:
+    """Periods t (T,) s of a run to the contract topics of ``writer`` (a LogWriter or a LiveView):
+    ``rec`` theta and the truth's columns, ``cols`` the controller's outputs, each (T, ...)."""
+    writer.write_batch("motors", t, rec["theta"], cols["forces"])
+    writer.write_batch("reference", t, alpha_d)
+    writer.write_batch("estimate", t, cols["alpha_hat"])
+    writer.write_batch("truth", t, rec["alpha"], rec["alpha_dot"], rec["tension"], rec["elongation"])
+    writer.write_batch("camera", camera_t, camera_alpha)
+
+
 def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, columns: dict) -> RunResult:
     """The RunResult of one finished run; its log (if any) written and closed."""
     cols = {name: out[:, sl] for name, sl in columns.items()}
@@ -475,12 +508,7 @@ def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, columns
     camera_t = np.asarray(camera[0], dtype=float).reshape(-1)
     camera_alpha = np.asarray(camera[1], dtype=float).reshape(-1, n)
     if writer is not None:
-        t = rec["t"]
-        writer.write_batch("motors", t, rec["theta"], cols["forces"])
-        writer.write_batch("reference", t, ref.alpha)
-        writer.write_batch("estimate", t, cols["alpha_hat"])
-        writer.write_batch("truth", t, rec["alpha"], rec["alpha_dot"], rec["tension"], rec["elongation"])
-        writer.write_batch("camera", camera_t, camera_alpha)
+        _write_topics(writer, rec["t"], rec, cols, ref.alpha, camera_t, camera_alpha)
         writer.close()
     rec = dict(rec, alpha_hat=cols["alpha_hat"], force=cols["forces"], requested=cols["requested"],
                saturated=cols["saturated"] > 0.5, elongation_hat=cols["elongation"], gamma=cols["gamma"])

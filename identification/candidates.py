@@ -20,7 +20,7 @@ torque of a payload or of spring errors.  Using the encoders' theta_ddot keeps t
 second derivative out of the large reflected-inertia term; the block does not depend on the cable
 model.
 
-**Cable block** (eq 42/54 per taut cable, N+1 rows per sample).  Elastic models:
+**Cable block** (eq 42/54 per taut cable, m rows per sample: the routing's cables).  Elastic models:
 
     y_C = f - (R/r_d) I_a theta_ddot  =  f_motor + k x_c + c_a x_c_dot + lambda x_c t + (k + lambda t) x_0,
 
@@ -47,7 +47,7 @@ the effect's own module of :mod:`neck_sim.effects`; this module only loops over 
 
 Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad, ``df(i)`` N,
 ``mu(i)``, ``k(i)`` N/m, ``c_a(i)`` N s/m, ``lambda(i)`` 1/m, ``payload`` kg,
-``dk(j)`` N/m per joint's side springs; i = 1..N+1 cables, j = 1..N joints.
+``dk(j)`` N/m per joint's side springs; i = 1..m cables (the routing's), j = 1..N joints.
 """
 
 from __future__ import annotations
@@ -313,7 +313,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         for term in model.terms:
             eff = term.effect
             design = eff.design(data, dict(term.shape), ctx)
-            cols = [nm for col in eff.columns for nm in col.names(n)]
+            cols = [nm for col in eff.columns for nm in col.names(n, C)]
             if design.torque.shape[2] != len(cols) or design.cable.shape[2] != len(cols):
                 raise RuntimeError(f"{term.name}.design: {design.torque.shape[2]} torque and {design.cable.shape[2]} "
                                    f"cable columns for {len(cols)} names {cols}")
@@ -324,7 +324,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
             colsT.append(design.torque)
             colsC.append(design.cable)
             names += cols
-            units += [col.unit for col in eff.columns for _ in col.names(n)]
+            units += [col.unit for col in eff.columns for _ in col.names(n, C)]
         p = len(names)
         stiff = k_hat + lam_hat * np.maximum(t_slow, 0.0)                       # (S, C) N/m
         if p:

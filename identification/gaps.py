@@ -39,8 +39,8 @@ def gap_lines(fits, *, tension, x_c_dot, theta_dot, taut) -> list[str]:
 
     ``fits`` is a sequence of (model name, names (p,), value (p,), sigma (p,), mask (p,) True =
     not identified); a parameter missing from several models gets one line naming them all.
-    ``tension`` (S, N+1) N of eq (55), ``x_c_dot`` (S, N+1) m/s, ``theta_dot`` (S, N+1) rad/s on
-    the slow grid, ``taut`` (S, N+1) bool.
+    ``tension`` (S, m) N of eq (55), ``x_c_dot`` (S, m) m/s, ``theta_dot`` (S, m) rad/s on the
+    slow grid, ``taut`` (S, m) bool.
     """
     known: dict = {}
     for model, names, value, sigma, mask in fits:

@@ -31,7 +31,7 @@ class MeasuredData:
 
     Built from measured topics only (:class:`~identification.preprocessing.Measurements`) and the
     nominal constants ``params`` (geometry, drive, springs, masses; never friction or cables).
-    Shapes: T control-rate samples, S slow-grid samples, N joints, C = N + 1 cables.
+    Shapes: T control-rate samples, S slow-grid samples, N joints, C = m cables (the routing's).
     """
 
     def __init__(self, meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
@@ -44,7 +44,7 @@ class MeasuredData:
             raise ValueError("camera: the diagnosis needs the /neck/camera joint angles (torque block eq 51 and "
                              "elongations eq 27); this log has none")
         self.n = params.n_joints
-        self.C = self.n + 1
+        self.C = params.n_cables
         act = params.actuation
         self.ratio = act.R / act.r_d
         fast = prep.fast
@@ -71,7 +71,7 @@ class MeasuredData:
         y_fast, y = self.observations(0.0)
         # slack samples: eq (41) tension with a first friction estimate (torque rows), as in §5.  Not
         # x_c <= 0: with a pretension the measured elongation is negative on a taut cable
-        a = self.to_slow(reg.friction_basis(self.theta_dot_fast, params))
+        a = reg.slow_friction_basis(prep, params)
         W = (self.Z * a[:, None, :]).reshape(-1, self.C)
         yT = (np.einsum("sij,sj->si", self.Z, y) - self.linkage).reshape(-1)
         try:

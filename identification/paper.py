@@ -38,7 +38,7 @@ from identification.preprocessing import Measurements, PreprocessSettings, Prepa
 from identification.uncertainty import N_BOOTSTRAP
 
 __all__ = ["PAPER", "IdentificationSettings", "IdentificationResult", "identify", "identify_log",
-           "reconstruct_elongation", "format_tables", "CABLE_MODELS"]
+           "reconstruct_elongation", "format_tables", "paper_comparable", "CABLE_MODELS"]
 
 #: The paper's published numbers (Tables 1, 2, §5.3-5.5), for side-by-side reports.
 PAPER = {
@@ -110,6 +110,7 @@ class IdentificationResult:
     settings: IdentificationSettings
     series: dict = field(default_factory=dict)
     notes: tuple = ()
+    params: NeckParams | None = None   # the nominal constants identified with (their routing names the cables)
     uncertainty: dict = field(default_factory=dict)   # model name -> uncertainty.Uncertainty
     gaps: tuple = ()                                    # one line per parameter not identified
 
@@ -132,7 +133,8 @@ class IdentificationResult:
             "torque_error_Nm": self.torque_error, "tension_error_N": self.tension_error,
             "alpha_error_deg": self.alpha_error_deg,
             "taut_fraction": None if self.taut_fraction is None else self.taut_fraction.tolist(),
-            "notes": list(self.notes), "paper": PAPER,
+            "notes": list(self.notes),
+            "paper": PAPER if self.params is None or paper_comparable(self.params) else None,
             "models_sigma": "eq (50), the paper's (independent residuals, exact regressors: 2-4x optimistic on "
                             "filtered logs); the calibrated values and sigmas are under 'uncertainty'",
             "uncertainty": {k: u.to_dict() for k, u in self.uncertainty.items()},
@@ -150,7 +152,7 @@ def _mean_abs(x) -> float:
 
 def reconstruct_elongation(force, theta_dot, params: NeckParams, *, k, lam, f_s, c_a: float,
                            dt: float) -> np.ndarray:
-    """x_c (T, N+1) m by eq (58) over logged forces (T, N+1) and motor speeds, from the static start.
+    """x_c (T, m) m by eq (58) over logged forces (T, m) and motor speeds, from the static start.
 
     Each step is ``controllers.estimators.ElongationEstimator.step``; the first sample is the
     static solution t / (k + lambda t) of the first force.
@@ -170,7 +172,7 @@ def reconstruct_elongation(force, theta_dot, params: NeckParams, *, k, lam, f_s,
 def _torque_errors(prep: Prepared, params: NeckParams, dyn: reg.Dynamics, f_s) -> tuple[dict, dict]:
     """Eqs (51)-(53) corrected: Gamma_m = Z f vs Z(a f_s + I_a (R/r_d)^2 x_c_ddot) + M alpha_ddot + c + g."""
     ia = params.actuation.reflected_inertia
-    a = reg.friction_basis(prep.theta_dot, params)
+    a = reg.slow_friction_basis(prep, params)
     inertial = np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) + dyn.c + dyn.g
     x_dd = prep.x_c_ddot if prep.x_c_ddot is not None else np.zeros_like(prep.force)
     gamma_m = np.einsum("sij,sj->si", dyn.Z, prep.force)
@@ -181,7 +183,7 @@ def _torque_errors(prep: Prepared, params: NeckParams, dyn: reg.Dynamics, f_s) -
 
 
 def _model_tension(prep: Prepared, params: NeckParams, k, lam, c_a) -> np.ndarray:
-    """Eq (54) solved for t: (k x + c_a x_dot) / (1 - lambda x) (no slack clipping), (S, N+1) N."""
+    """Eq (54) solved for t: (k x + c_a x_dot) / (1 - lambda x) (no slack clipping), (S, m) N."""
     lam = np.asarray(lam, dtype=float)
     return (np.asarray(k) * prep.x_c + np.asarray(c_a) * prep.x_c_dot) / (1.0 - lam * prep.x_c)
 
@@ -205,11 +207,15 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
     def at_camera(a):
         return np.stack([np.interp(tc, t, a[:, j]) for j in range(a.shape[1])], axis=1)
 
-    try:
-        tri = estimate_alpha_triangular(np.broadcast_to(theta, xs.shape), params, xs)
-    except UnreachableError as exc:
-        tri = None
-        notes.append(f"eq (33) reconstruction failed: {exc}")
+    tri = None
+    if not params.routing.is_paper_kind(params.n_joints):
+        notes.append("eq (33) reconstruction skipped: it needs the paper's routing (cable j ends at joint j, one "
+                     "long left cable); this neck's routing differs")
+    else:
+        try:
+            tri = estimate_alpha_triangular(np.broadcast_to(theta, xs.shape), params, xs)
+        except UnreachableError as exc:
+            notes.append(f"eq (33) reconstruction failed: {exc}")
     alpha0 = np.broadcast_to(prep.alpha[0], (len(names), prep.alpha.shape[1]))
     pinv = estimate_alpha_pinv(np.broadcast_to(theta, xs.shape), params, xs, alpha0=alpha0)
     for i, n in enumerate(names):
@@ -270,7 +276,10 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         series[f"tension_{name}"] = t_lhs
         tension_error[name] = _mean_abs((t_rhs - t_lhs)[taut])
     alpha_error = {}
-    if s.reconstruct_alpha and (elastic is not None or variable is not None):
+    if s.reconstruct_alpha and params.n_cables < params.n_joints:
+        notes.append(f"alpha_hat (§5.5) not reconstructed: eq (35) needs at least as many cables as joints (this "
+                     f"neck: {params.n_cables} cables, {params.n_joints} joints)")
+    elif s.reconstruct_alpha and (elastic is not None or variable is not None):
         cable_models = {}
         if elastic is not None:
             cable_models["constant"] = (elastic.group("k"), np.zeros(params.n_cables))
@@ -282,7 +291,8 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
     fits = {"friction": friction, "elastic": elastic, "variable": variable}
     uncertainty, gap_lines = calibrated_uncertainty(prep, params, s, fits, dyn, taut, f_s, t_rhs)
     return IdentificationResult(friction, elastic, variable, torque_error, tension_error, alpha_error,
-                                taut.mean(axis=0), prep, s, series, tuple(notes), uncertainty, tuple(gap_lines))
+                                taut.mean(axis=0), prep, s, series, tuple(notes), params, uncertainty=uncertainty,
+                                gaps=tuple(gap_lines))
 
 
 def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: IdentificationSettings, fits: dict,
@@ -340,36 +350,71 @@ def identify_log(log, settings: IdentificationSettings | None = None, *, params:
     return identify(prep, p, s, models=models)
 
 
-def _cell(v, rel, paper_v, paper_rel, fmt):
+def paper_comparable(params: NeckParams) -> bool:
+    """True when the paper's Tables 1-2 describe the same cables: its 3-joint neck and routing."""
+    return params.n_joints == 3 and params.routing.is_paper_kind(3)
+
+
+def _cell(v, rel, ref_v, ref_rel, fmt):
+    """"ours (relative sigma) | paper (relative sigma)", or "| reference (our difference)" when
+    ``ref_rel`` is None (a reference value without a sigma: the plant's or the nominal one)."""
     ours = f"{v:{fmt}} ({rel:.2f} %)"
-    return f"{ours:>20} | {paper_v:{fmt}} ({paper_rel:.2f} %)"
+    if ref_rel is not None:
+        return f"{ours:>20} | {ref_v:{fmt}} ({ref_rel:.2f} %)"
+    if ref_v is None or not np.isfinite(ref_v):
+        return f"{ours:>20} | {'-':>6}"
+    diff = 100.0 * (v - ref_v) / abs(ref_v) if ref_v else float("nan")
+    return f"{ours:>20} | {ref_v:{fmt}} ({diff:+.1f} %)"
 
 
-def format_tables(result: IdentificationResult, truth: NeckParams | None = None) -> str:
-    """Tables 1 and 2 in the paper's layout: "ours (relative sigma) | paper (relative sigma)".
+def format_tables(result: IdentificationResult, truth: NeckParams | None = None, *,
+                  reference: str | None = None) -> str:
+    """Tables 1 and 2 per cable of the routing: "ours (relative sigma) | reference".
 
-    With ``truth`` (simulated data), the true plant values are added in a last column.
+    The reference is the paper's published value (relative sigma) only when the neck is the
+    paper's (3 joints, its routing: :func:`paper_comparable`); for any other neck it is the
+    parameter values per cable with our relative difference: ``truth``'s (simulated data: the
+    plant's) when given, else those of ``result.params`` (the nominal constants the
+    identification was given), named ``reference`` in the header.  On the paper's neck ``truth``
+    adds the plant's values in a line under each table.
     """
-    n1 = result.prepared.theta.shape[1]
+    p = result.params
+    m = result.prepared.theta.shape[1]
+    paper = p is None or paper_comparable(p)
     P1, P2 = PAPER["table1"], PAPER["table2"]
-    pad = (lambda lst: list(lst) + [float("nan")] * (n1 - len(lst)))
-    lines = ["Table 1: identified parameters -- ours (relative sigma) | paper (relative sigma)"]
+    if paper:
+        ref_name = "paper"
+        ref = {"f_s_e": (P1["f_s_elastic"], P1["f_s_elastic_rel"]), "f_s_f": (P1["f_s_friction"], P1["f_s_friction_rel"]),
+               "k1": (P1["k"], P1["k_rel"]), "c_a1": (P1["c_a"], P1["c_a_rel"]), "k2": (P2["k"], P2["k_rel"]),
+               "lambda": (P2["lambda"], P2["lambda_rel"]), "c_a2": (P2["c_a"], P2["c_a_rel"])}
+    else:
+        src = truth if truth is not None else p
+        ref_name = "plant" if truth is not None else (reference or "nominal")
+        none = [None] * m
+        ref = {"f_s_e": (src.friction.f_s, none), "f_s_f": (src.friction.f_s, none),
+               "k1": (src.cables.k_linear or none, none), "c_a1": (src.cables.c_a, none), "k2": (src.cables.k, none),
+               "lambda": (src.cables.lam, none), "c_a2": (src.cables.c_a, none)}
+    lines = [f"Table 1: identified parameters -- ours (relative sigma) | {ref_name}"
+             + (" (relative sigma)" if paper else " (our difference)")]
+    if not paper:
+        lines.append(f"  {p.n_joints} joints, {m} cables in the routing's order; the paper's Tables 1-2 are for its "
+                     f"3-joint routing and are not compared")
     head = f"{'':8}"
     cols = []
     if result.elastic is not None:
-        cols.append(("Ident. with (44),(45): f_s (N)", result.elastic, "f_s", P1["f_s_elastic"], P1["f_s_elastic_rel"], ".2f"))
+        cols.append(("Ident. with (44),(45): f_s (N)", result.elastic, "f_s", "f_s_e", ".2f"))
     if result.friction is not None:
-        cols.append(("Ident. with (46),(47): f_s (N)", result.friction, "f_s", P1["f_s_friction"], P1["f_s_friction_rel"], ".2f"))
+        cols.append(("Ident. with (46),(47): f_s (N)", result.friction, "f_s", "f_s_f", ".2f"))
     if result.elastic is not None:
-        cols.append(("Stiffness k (N/m)", result.elastic, "k", P1["k"], P1["k_rel"], ".0f"))
-        cols.append(("Damping c_a (N s/m)", result.elastic, "c_a", P1["c_a"], P1["c_a_rel"], ".0f"))
+        cols.append(("Stiffness k (N/m)", result.elastic, "k", "k1", ".0f"))
+        cols.append(("Damping c_a (N s/m)", result.elastic, "c_a", "c_a1", ".0f"))
     for title, *_ in cols:
         head += f"  {title:>40}"
     lines.append(head)
-    for i in range(n1):
+    for i in range(m):
         row = f"{'cable ' + str(i + 1):8}"
-        for _, res, sym, pv, pr, fmt in cols:
-            row += f"  {_cell(res.group(sym)[i], res.group_rel_sigma(sym)[i], pad(pv)[i], pad(pr)[i], fmt):>40}"
+        for _, res, sym, key, fmt in cols:
+            row += f"  {_cell(res.group(sym)[i], res.group_rel_sigma(sym)[i], ref[key][0][i], ref[key][1][i], fmt):>40}"
         lines.append(row)
     conds = []
     for name in ("elastic", "friction"):
@@ -377,33 +422,39 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None)
         if res is not None:
             conds.append(f"{name}: cond(W) = {res.cond:.3g}, scaled {res.cond_scaled:.3g}, sigma_rho = {res.sigma_rho:.3g}")
     lines += ["  " + c for c in conds]
-    if truth is not None:
+    if truth is not None and paper:
         lines.append(f"  plant: f_s = {', '.join(f'{v:.2f}' for v in truth.friction.f_s)} N")
     if result.variable is not None:
         v = result.variable
-        lines += ["", "Table 2: variable stiffness (friction fixed) -- ours (relative sigma) | paper (relative sigma)",
+        lines += ["", f"Table 2: variable stiffness (friction fixed) -- ours (relative sigma) | {ref_name}"
+                  + (" (relative sigma)" if paper else " (our difference)"),
                   f"{'':8}  {'k (N/m)':>40}  {'lambda (1/m)':>40}  {'c_a (N s/m)':>40}"]
-        for i in range(n1):
-            lines.append(f"{'cable ' + str(i + 1):8}"
-                         f"  {_cell(v.group('k')[i], v.group_rel_sigma('k')[i], pad(P2['k'])[i], pad(P2['k_rel'])[i], '.0f'):>40}"
-                         f"  {_cell(v.group('lambda')[i], v.group_rel_sigma('lambda')[i], pad(P2['lambda'])[i], pad(P2['lambda_rel'])[i], '.1f'):>40}"
-                         f"  {_cell(v.group('c_a')[i], v.group_rel_sigma('c_a')[i], pad(P2['c_a'])[i], pad(P2['c_a_rel'])[i], '.0f'):>40}")
+        for i in range(m):
+            lines.append(f"{'cable ' + str(i + 1):8}" + "".join(
+                f"  {_cell(v.group(sym)[i], v.group_rel_sigma(sym)[i], ref[key][0][i], ref[key][1][i], fmt):>40}"
+                for sym, key, fmt in (("k", "k2", ".0f"), ("lambda", "lambda", ".1f"), ("c_a", "c_a2", ".0f"))))
         lines.append(f"  cond(W) = {v.cond:.3g}, scaled {v.cond_scaled:.3g}, sigma_rho = {v.sigma_rho:.3g}")
-        if truth is not None:
+        if truth is not None and paper:
             lines.append(f"  plant: k = {', '.join(f'{x:.0f}' for x in truth.cables.k)} N/m, "
                          f"lambda = {', '.join(f'{x:.1f}' for x in truth.cables.lam)} 1/m, "
                          f"c_a = {', '.join(f'{x:.0f}' for x in truth.cables.c_a)} N s/m")
     lines += ["", f"{'reconstruction error':44} {'ours':>8} {'paper':>8}"]
     te, pe = result.torque_error, PAPER["torque_error"]
-    lines.append(f"{'torque, eqs (51)-(53), with friction (N m)':44} {te['with_friction']:8.3f} {pe['with_friction']:8.2f}")
-    lines.append(f"{'torque, without friction (N m)':44} {te['without_friction']:8.3f} {pe['without_friction']:8.2f}")
+
+    def paper_value(v: float) -> str:
+        return f"{v:8.2f}" if paper else f"{'-':>8}"
+
+    lines.append(f"{'torque, eqs (51)-(53), with friction (N m)':44} {te['with_friction']:8.3f} "
+                 f"{paper_value(pe['with_friction'])}")
+    lines.append(f"{'torque, without friction (N m)':44} {te['without_friction']:8.3f} "
+                 f"{paper_value(pe['without_friction'])}")
     for name, label in (("constant", "tension, constant stiffness (N)"), ("variable", "tension, variable stiffness (N)")):
         if name in result.tension_error:
-            lines.append(f"{label:44} {result.tension_error[name]:8.2f} {PAPER['tension_error'][name]:8.2f}")
+            lines.append(f"{label:44} {result.tension_error[name]:8.2f} {paper_value(PAPER['tension_error'][name])}")
     for eq in ("eq33", "eq35"):
         for name, val in result.alpha_error_deg.get(eq, {}).items():
             label = f"alpha_hat by eq ({eq[2:]}), {name} (deg)"
-            lines.append(f"{label:44} {val:8.2f} {PAPER['alpha_error_deg'][eq][name]:8.2f}")
+            lines.append(f"{label:44} {val:8.2f} {paper_value(PAPER['alpha_error_deg'][eq][name])}")
     c = result.prepared.cutoffs
     lines += ["", "cutoffs (residual analysis): " + ", ".join(f"{k} {v.hz:.2f} Hz" for k, v in c.items())
               + f"; {result.prepared.n_samples} samples at {result.prepared.rate_hz:.2f} Hz"]

@@ -37,9 +37,14 @@ def figure_torques(result):
     n = s["gamma_m"].shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(10, 2.2 * n), sharex=True)
     for j, ax in enumerate(np.atleast_1d(axes)):
-        ax.plot(t, s["gamma_m"][:, j], color="tab:blue", lw=1.0, label=r"$\Gamma_m = Zf$")
-        ax.plot(t, s["gamma_rf"][:, j], color="tab:green", lw=1.0, label=r"$\Gamma_{rf}$ (friction)")
-        ax.plot(t, s["gamma_r"][:, j], color="tab:red", lw=1.0, label=r"$\Gamma_r$ (no friction)")
+        # the measured torque is a wide pale band under the models' thin dashed lines: where the
+        # friction model is right its line runs inside the band, and both stay visible
+        ax.plot(t, s["gamma_m"][:, j], color="tab:blue", lw=3.0, alpha=0.45, zorder=1,
+                label=r"$\Gamma_m = Zf$ (measured)")
+        ax.plot(t, s["gamma_rf"][:, j], color="tab:green", lw=1.0, ls="--", zorder=3,
+                label=r"$\Gamma_{rf}$ (model, friction)")
+        ax.plot(t, s["gamma_r"][:, j], color="tab:red", lw=1.0, ls=":", zorder=2,
+                label=r"$\Gamma_r$ (model, no friction)")
         ax.set_ylabel(f"joint {j + 1} (N m)")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", ncol=3, fontsize=8)

@@ -34,7 +34,8 @@ slow grid:
 forces) for the online-estimator reconstructions of §5.5 (eq 58 with a 2 ms step).
 
 Times are used only relative to each other: a log cut at any start time gives the same result.
-Shapes: T control-rate samples, K camera frames, S slow-grid samples, N joints, N + 1 cables.
+Shapes: T control-rate samples, K camera frames, S slow-grid samples, N joints, m cables (the
+routing's, ``params.n_cables``; N + 1 on the paper's routing).
 """
 
 from __future__ import annotations
@@ -74,8 +75,9 @@ def _as_series(name: str, t, x, width: int | None, *, min_len: int = 2):
 class Measurements:
     """What the prototype measures (the log contract's measured topics), SI units.
 
-    t_motor (T,) s, theta (T, N+1) rad motor-shaft angles (> 0 winds up), force (T, N+1) N
-    commanded; t_camera (K,) s and alpha_camera (K, N) rad, or both None without a camera.
+    t_motor (T,) s, theta (T, m) rad motor-shaft angles (> 0 winds up), force (T, m) N
+    commanded; t_camera (K,) s and alpha_camera (K, N) rad, or both None without a camera.  The
+    widths m and N are the log's own: :func:`prepare` checks them against the routing.
     """
 
     t_motor: np.ndarray
@@ -87,21 +89,38 @@ class Measurements:
     def __post_init__(self):
         t, th = _as_series("motors.theta", self.t_motor, self.theta, None, min_len=64)
         _, f = _as_series("motors.force", t, self.force, th.shape[1])
-        if th.shape[1] < 2:
-            raise ValueError(f"motors.theta: expected N+1 >= 2 motors per sample, got {th.shape[1]}")
+        if th.shape[1] < 1:
+            raise ValueError(f"motors.theta: expected at least one motor per sample, got {th.shape[1]}")
         object.__setattr__(self, "t_motor", t)
         object.__setattr__(self, "theta", th)
         object.__setattr__(self, "force", f)
         if (self.t_camera is None) != (self.alpha_camera is None):
             raise ValueError("camera: t_camera and alpha_camera must both be given or both be None")
         if self.t_camera is not None:
-            tc, a = _as_series("camera.alpha", self.t_camera, self.alpha_camera, th.shape[1] - 1, min_len=8)
+            tc, a = _as_series("camera.alpha", self.t_camera, self.alpha_camera, None, min_len=8)
             object.__setattr__(self, "t_camera", tc)
             object.__setattr__(self, "alpha_camera", a)
 
     @property
-    def n_joints(self) -> int:
-        return self.theta.shape[1] - 1
+    def n_cables(self) -> int:
+        """m, the number of motors (one per cable)."""
+        return self.theta.shape[1]
+
+    @property
+    def n_joints(self) -> int | None:
+        """N from the camera's width, None without a camera."""
+        return None if self.alpha_camera is None else self.alpha_camera.shape[1]
+
+    def check_shapes(self, params: NeckParams) -> None:
+        """Raise ValueError naming the field, the expected and the found shape when these
+        measurements do not fit the neck of ``params`` (m = ``params.n_cables`` motors, N joints)."""
+        m, n = params.n_cables, params.n_joints
+        for name, x, width, what in (("motors.theta", self.theta, m, f"{m} cables"),
+                                     ("motors.force", self.force, m, f"{m} cables"),
+                                     ("camera.alpha", self.alpha_camera, n, f"{n} joints")):
+            if x is not None and x.shape[1] != width:
+                raise ValueError(f"{name}: expected shape ({x.shape[0]}, {width}) for the routing's {what}, "
+                                 f"got {x.shape}")
 
     @property
     def has_camera(self) -> bool:
@@ -241,9 +260,9 @@ class FastSignals(NamedTuple):
     """Control-rate signals for the online-estimator reconstructions (§5.5), over the whole log."""
 
     t: np.ndarray          # (T,) s
-    theta: np.ndarray      # (T, N+1) rad, as measured (quantised)
-    theta_dot: np.ndarray  # (T, N+1) rad/s, filtered, central differences
-    force: np.ndarray      # (T, N+1) N, as commanded
+    theta: np.ndarray      # (T, m) rad, as measured (quantised)
+    theta_dot: np.ndarray  # (T, m) rad/s, filtered, central differences
+    force: np.ndarray      # (T, m) N, as commanded
 
 
 class SlowChain(NamedTuple):
@@ -342,9 +361,7 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     """
     s = settings or PreprocessSettings()
     n = params.n_joints
-    if meas.n_joints != n:
-        raise ValueError(f"motors: the log has {meas.n_joints + 1} motors, the parameters describe "
-                         f"{n + 1} cables ({n} joints)")
+    meas.check_shapes(params)
     fs = _uniform_rate(meas.t_motor, "motors.t")
     cam_rate = camera_rate_hz or params.sensors.camera_rate_hz
     q = decimation_factor(fs, cam_rate)

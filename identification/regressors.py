@@ -7,7 +7,8 @@ so the corrected full model (eq 32) reads
 
     M alpha_ddot + c + g = Z (f - f_friction - I_a (R/r_d)^2 x_c_ddot),
 
-the x_c term being the second derivative (erratum 4) with its sign flipped (erratum 6).
+the x_c term being the second derivative (erratum 4) with its sign flipped (erratum 6).  Any
+routing: N joints and m cables (``params.n_cables``), Z (S, N, m); the paper's routing has m = N + 1.
 
 Models
 ------
@@ -16,7 +17,7 @@ Models
   a = (2/pi) arctan(c_s theta_dot).  As printed, eqs (46)-(47) would regress f - (R/r_d) I_a
   theta_ddot (= tension + friction) on diag(a) and fit the friction to the cable tension; the
   text ("model without cable elasticity", values within 2 % of column 1) describes eq (38).
-* ``elastic_model`` -- eqs (44)-(45), v = (k, c_a, f_s): per sample N+1 tension rows
+* ``elastic_model`` -- eqs (44)-(45), v = (k, c_a, f_s): per sample m tension rows
   diag(x_c) k + diag(x_c_dot) c_a + diag(a) f_s = f - (R/r_d) I_a theta_ddot (eq 42), then N
   torque rows weighted by W (default 100): W Z diag(a) f_s = W (Z (f - I_a (R/r_d)^2 x_c_ddot)
   - M alpha_ddot - c - g).
@@ -40,8 +41,8 @@ from neck_sim.params import NeckParams
 
 from identification.preprocessing import Prepared
 
-__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "tension_from_forces", "taut_samples",
-           "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
+__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "slow_friction_basis", "tension_from_forces",
+           "taut_samples", "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
 
 
 class Regression(NamedTuple):
@@ -54,7 +55,7 @@ class Regression(NamedTuple):
 
 
 class Dynamics(NamedTuple):
-    """Z (S, N, N+1) m, M (S, N, N) kg m^2 with motors, c (S, N) N m with motors, g (S, N) N m."""
+    """Z (S, N, m) m, M (S, N, N) kg m^2 with motors, c (S, N) N m with motors, g (S, N) N m."""
 
     Z: np.ndarray
     M: np.ndarray
@@ -63,7 +64,7 @@ class Dynamics(NamedTuple):
 
 
 def parameter_names(symbol: str, n_cables: int) -> tuple:
-    """("k(1)", ..., "k(N+1)") -- the paper's labels."""
+    """("k(1)", ..., "k(m)") -- the paper's labels, cables numbered in the routing's order."""
     return tuple(f"{symbol}({i + 1})" for i in range(n_cables))
 
 
@@ -91,21 +92,33 @@ def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
 
 
 def friction_basis(theta_dot, params: NeckParams) -> np.ndarray:
-    """a = (2/pi) arctan(c_s theta_dot), the eq (37) friction per unit f_s, (..., N+1)."""
+    """a = (2/pi) arctan(c_s theta_dot), the eq (37) friction per unit f_s, (..., m)."""
     th = np.asarray(theta_dot, dtype=float)
     return motor_friction(th, params, f_s=np.ones(th.shape[-1]))
 
 
+def slow_friction_basis(prep: Prepared, params: NeckParams) -> np.ndarray:
+    """The eq (37) basis on the slow grid, (S, m): computed at the control rate from the encoders'
+    speed and taken through the chain the forces took (``prep.chain``: parallel filtering, as the
+    diagnosis does).  The arctan of the filtered slow-grid speed would differ from the filtered
+    arctan wherever the speed oscillates faster than the common cutoff (the ringing of a neck with
+    fewer cables than N + 1: f_s 6-8 % low on the 10-joint, 4-cable neck).  A ``Prepared`` without a
+    chain (``excitation.prepared_from_prediction``, unfiltered) uses its slow-grid speed."""
+    if prep.chain is None or prep.fast is None:
+        return friction_basis(prep.theta_dot, params)
+    return prep.chain(friction_basis(prep.fast.theta_dot, params))
+
+
 def tension_from_forces(prep: Prepared, params: NeckParams, f_s) -> np.ndarray:
-    """Cable tensions of eq (41)/(55): f - a f_s - (R/r_d) I_a theta_ddot, (S, N+1) N."""
+    """Cable tensions of eq (41)/(55): f - a f_s - (R/r_d) I_a theta_ddot, (S, m) N."""
     act = params.actuation
-    return (prep.force - friction_basis(prep.theta_dot, params) * np.asarray(f_s, dtype=float)
+    return (prep.force - slow_friction_basis(prep, params) * np.asarray(f_s, dtype=float)
             - (act.R / act.r_d) * act.I_a * prep.theta_ddot)
 
 
 def taut_samples(prep: Prepared, params: NeckParams, f_s, *, threshold: float = 2.0,
                  margin_s: float = 0.1) -> np.ndarray:
-    """Mask (S, N+1), True where cable i is taut at sample s (see the module docstring).
+    """Mask (S, m), True where cable i is taut at sample s (see the module docstring).
 
     ``threshold`` N on the eq (41) tension with friction ``f_s``; ``margin_s`` s added on both
     sides of every slack interval.  Needs the camera for the elongation test.
@@ -135,15 +148,14 @@ def _diag_rows(cols: list[np.ndarray], taut: np.ndarray | None) -> tuple[np.ndar
 
 
 def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool):
-    """(Z diag(a) (S*N, N+1), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
-    a = friction_basis(prep.theta_dot, params)
+    """(Z diag(a) (S*N, m), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
+    a = slow_friction_basis(prep, params)
     Za = dyn.Z * a[:, None, :]
     f = prep.force
     if elastic:
         f = f - params.actuation.reflected_inertia * prep.x_c_ddot
     y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) - dyn.c - dyn.g)
-    n = dyn.Z.shape[1]
-    return Za.reshape(-1, n + 1), y.reshape(-1)
+    return Za.reshape(-1, Za.shape[2]), y.reshape(-1)
 
 
 def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | None = None) -> Regression:
@@ -164,7 +176,7 @@ def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, 
     dyn = dyn or joint_dynamics(prep, params)
     act = params.actuation
     C = params.n_cables
-    a = friction_basis(prep.theta_dot, params)
+    a = slow_friction_basis(prep, params)
     Wt, keep = _diag_rows([prep.x_c, prep.x_c_dot, a], taut)
     Yt = (prep.force - (act.R / act.r_d) * act.I_a * prep.theta_ddot)[keep]
     Za, yq = _torque_rows(prep, params, dyn, elastic=True)

@@ -118,7 +118,9 @@ def _residual_figure(diag, path: str, kind: str) -> str:
     if kind == "torque":
         chans = list(range(n))
         scale, unit, title = 1.0, "N m", "joint torque residual (eq 51)"
-        cable_of = lambda i: i                                  # the right cable that drives joint i
+        # the cable that drives joint i most (the paper's routing: right cable i)
+        lever = np.abs(data.Z).mean(axis=0)                     # (N, C) m
+        cable_of = lambda i: int(np.argmax(lever[i]))
         joint_of = lambda i: i
         name_of = lambda i: f"joint {i + 1}"
     else:
@@ -171,6 +173,7 @@ def _candidates_figure(diag, path: str) -> str:
         ax.axvline(100 * diag.settings.min_improvement, color="k", ls="--", lw=0.8)
         ax.set_title(f"step {i + 1}: {st.verdict}", fontsize=9)
         ax.set_xlabel("held-out improvement (%)")
+        ax.set_ylabel("candidate effect")
         ax.tick_params(labelsize=7)
     fig.suptitle("candidates (green: significant; orange: unphysical sign; dashed: minimum improvement)", fontsize=9)
     fig.tight_layout()
@@ -211,6 +214,24 @@ def _alpha_figure(diag, path: str) -> str | None:
     return path
 
 
+def _resim_scale(data, key: str, curves) -> tuple[float, list[bool]]:
+    """Half-height of a re-simulation panel and which curves leave it.
+
+    The scale holds the last model compared (the final one) whole, but never more than
+    the measured signal's own range (motor angles in rad, camera angles in deg): an error larger
+    than the signal it is the error of says only that the model diverged, which the legend says.
+    """
+    measured = data.prep.fast.theta if key == "theta_error" else np.degrees(data.alpha)
+    measured = np.abs(np.asarray(measured, dtype=float))
+    span = float(np.nanmax(measured)) if np.isfinite(measured).any() else np.inf
+    ref = np.abs(getattr(curves[-1][2], key))
+    ref = ref[np.isfinite(ref)]
+    lim = 1.1 * float(ref.max()) if ref.size else span
+    lim = max(min(lim, span), 1e-9)
+    off = [bool(np.nanmax(np.abs(getattr(r, key)), initial=0.0) > lim) for _, _, r in curves]
+    return lim, off
+
+
 def _resim_figure(diag, path: str) -> str | None:
     import matplotlib.pyplot as plt
 
@@ -219,26 +240,26 @@ def _resim_figure(diag, path: str) -> str | None:
         return None
     data = diag.data
     fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
-    for label, colour, r in curves:
-        for j in range(data.C):
-            axes[0].plot(r.t, r.theta_error[:, j], color=colour, lw=0.6, alpha=0.4 + 0.15 * j,
-                         label=label if j == 0 else None)
-        for j in range(data.n):
-            axes[1].plot(r.t_camera, r.alpha_error_deg[:, j], color=colour, lw=0.6, label=label if j == 0 else None)
+    scales = {key: _resim_scale(data, key, curves) for key in ("theta_error", "alpha_error_deg")}
+    units = {"theta_error": "rad", "alpha_error_deg": "deg"}
     for ax, key in zip(axes, ("theta_error", "alpha_error_deg")):
+        lim, off = scales[key]
+        for (label, colour, r), out in zip(curves, off):
+            err = getattr(r, key)
+            t = r.t if key == "theta_error" else r.t_camera
+            if out:  # diverged: dotted, behind, its size in the legend
+                label = f"{label} -- diverged, off scale (max |error| {np.nanmax(np.abs(err)):.3g} {units[key]})"
+            for j in range(err.shape[1]):
+                ax.plot(t, err[:, j], color=colour, lw=0.6, ls=":" if out else "-", zorder=1 if out else 2,
+                        alpha=0.5 if out else 0.4 + 0.15 * j, label=label if j == 0 else None)
         _shade(ax, diag.split, None)
         ax.axhline(0, color="k", lw=0.5)
-        ax.legend(fontsize=7)
-        # a diverging model blows up just before it stops: keep the scale of the rest
-        vals = np.concatenate([np.abs(getattr(r, key)).ravel() for _, _, r in curves])
-        vals = vals[np.isfinite(vals)]
-        if vals.size:
-            lim = 1.5 * float(np.percentile(vals, 98)) + 1e-9
-            ax.set_ylim(-lim, lim)
-    axes[0].set_ylabel("theta error (rad)")
+        ax.set_ylim(-lim, lim)
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0].set_ylabel("motor angle error (rad)")
     axes[1].set_ylabel("alpha - camera (deg)")
     axes[1].set_xlabel("time (s)")
-    fig.suptitle("open-loop re-simulation driven by the logged forces")
+    fig.suptitle("open-loop re-simulation driven by the logged forces (scale: the final model's error)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -283,7 +304,8 @@ def _unexplained_figure(diag, path: str) -> str | None:
     bins = np.array_split(order, 20)
     a1.plot([feat[ok][b].mean() for b in bins if b.size], [res[ok][b].mean() for b in bins if b.size], "r-", lw=2,
             label="binned mean")
-    a1.set_xlabel(top.feature)
+    from identification.diagnosis.structure import feature_unit
+    a1.set_xlabel(f"{top.feature} ({feature_unit(top.feature)})")
     a1.set_ylabel(f"{top.channel} residual ({top.unit})")
     a1.legend(fontsize=7)
     a2.plot(t, res, lw=0.7)

@@ -107,12 +107,13 @@ def row_samples(n_samples: int, n_joints: int, taut=None, *, torque: bool = True
     """Slow-grid sample index of every row of a ``regressors`` model, in its row order.
 
     Tension rows (``tension``) come first, one per taut (sample, cable) in sample-major order
-    (``taut`` (S, N+1) bool, None = all); torque rows (``torque``) follow, N per sample.
+    (``taut`` (S, m) bool, needed for them); torque rows (``torque``) follow, N per sample.
     """
     parts = []
     if tension:
-        keep = np.ones((n_samples, n_joints + 1), bool) if taut is None else np.asarray(taut, bool)
-        parts.append(np.nonzero(keep)[0])
+        if taut is None:
+            raise ValueError("row_samples: the tension rows need the taut mask (S, m)")
+        parts.append(np.nonzero(np.asarray(taut, bool))[0])
     if torque:
         parts.append(np.repeat(np.arange(n_samples), n_joints))
     return np.concatenate(parts)

@@ -5,12 +5,12 @@ ignored, blank lines and lines starting with ``#`` skipped, SI units, one row pe
 strictly increasing):
 
 =============== ====================================================================== ==========
-file            columns (N = number of X-joints of the parameter file)                 topic
+file            columns (N X-joints, m cables of the parameter file's routing)         topic
 =============== ====================================================================== ==========
-motors CSV      ``t`` (s), ``theta1`` .. ``theta{N+1}`` (rad, motor shaft, 0 at the    /neck/motors
+motors CSV      ``t`` (s), ``theta1`` .. ``theta{m}`` (rad, motor shaft, 0 at the      /neck/motors
                 straight rest pose, > 0 winds the cable up), ``force1`` ..
-                ``force{N+1}`` (commanded cable force, N); index N+1 is the long left
-                cable
+                ``force{m}`` (commanded cable force, N); index i is the routing's
+                cable i (m = N + 1 on the paper's routing, N + 1 the long left cable)
 camera CSV      ``t`` (s), ``alpha1`` .. ``alpha{N}`` (rad, joint angles from video)    /neck/camera
 reference CSV   ``t``, ``alpha_d1`` .. ``alpha_d{N}`` (rad), optional                  /neck/reference
 estimate CSV    ``t``, ``alpha_hat1`` .. ``alpha_hat{N}`` (rad), optional              /neck/estimate
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import os
 from dataclasses import dataclass
 
@@ -38,20 +39,22 @@ from neck_sim.params import NeckParams, default_params
 __all__ = ["csv_columns", "read_csv_table", "import_csv", "ImportResult"]
 
 
-def csv_columns(kind: str, n_joints: int) -> list[str]:
-    """Required columns of a ``motors``, ``camera``, ``reference`` or ``estimate`` CSV."""
-    n1 = n_joints + 1
+def csv_columns(kind: str, n_joints: int, n_cables: int) -> list[str]:
+    """Required columns of a ``motors`` (m = ``n_cables`` motors), ``camera``, ``reference`` or
+    ``estimate`` (N = ``n_joints`` joints) CSV."""
     if kind == "motors":
-        return ["t"] + [f"theta{j}" for j in range(1, n1 + 1)] + [f"force{j}" for j in range(1, n1 + 1)]
+        return (["t"] + [f"theta{j}" for j in range(1, n_cables + 1)]
+                + [f"force{j}" for j in range(1, n_cables + 1)])
     prefix = {"camera": "alpha", "reference": "alpha_d", "estimate": "alpha_hat"}.get(kind)
     if prefix is None:
         raise ValueError(f"unknown CSV kind {kind!r} (motors, camera, reference, estimate)")
     return ["t"] + [f"{prefix}{i}" for i in range(1, n_joints + 1)]
 
 
-def read_csv_table(path, columns: list[str]) -> tuple[dict[str, np.ndarray], list[str]]:
+def read_csv_table(path, columns: list[str], why: str = "") -> tuple[dict[str, np.ndarray], list[str]]:
     """Read the named columns of a CSV file as float arrays; returns (columns, ignored names).
 
+    ``why`` (e.g. "the routing's 4 cables") is named with the needed columns when some are missing.
     Raises ValueError naming the file, line and column of the first problem: missing or duplicate
     column, wrong number of cells, a cell that is not a finite number, time not increasing.
     """
@@ -79,7 +82,8 @@ def read_csv_table(path, columns: list[str]) -> tuple[dict[str, np.ndarray], lis
         raise ValueError(f"{path}:{header_line}: duplicate column(s) {', '.join(dup)}")
     missing = [c for c in columns if c.lower() not in names]
     if missing:
-        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (needed: {', '.join(columns)}; "
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (needed{' for ' + why if why else ''}: "
+                         f"{', '.join(columns)}; "
                          f"found: {', '.join(h.strip() for h in header)})")
     index = [names.index(c.lower()) for c in columns]
     ignored = [h.strip() for h, low in zip(header, names) if low not in {c.lower() for c in columns}]
@@ -106,6 +110,19 @@ def read_csv_table(path, columns: list[str]) -> tuple[dict[str, np.ndarray], lis
     return {c: data[:, k] for k, c in enumerate(columns)}, ignored
 
 
+def _refuse_extra_channels(path, kind: str, ignored: list[str], columns: list[str], why: str) -> None:
+    """Refuse channel columns beyond the routing's (``theta5`` for 4 cables, ``alpha11`` for 10
+    joints): a file for another neck, not an extra column to ignore."""
+    prefixes = sorted({re.match(r"[a-z_]+", c).group() for c in columns[1:]}, key=len, reverse=True)
+    extra = [c for c in ignored if any(re.fullmatch(rf"{p}\d+", c.lower()) for p in prefixes)]
+    if extra:
+        width = len(columns) - 1 if kind != "motors" else (len(columns) - 1) // 2
+        found = max(int(re.search(r"\d+$", c).group()) for c in extra)
+        raise ValueError(f"{os.fspath(path)}: column(s) {', '.join(extra)} beyond {why}: expected {width} per "
+                         f"channel ({', '.join(columns[1:])}), found {found}; is "
+                         f"--params the neck these data come from?")
+
+
 @dataclass(frozen=True)
 class ImportResult:
     """What ``import_csv`` wrote: samples per topic, time shift applied (s), ignored columns."""
@@ -127,12 +144,14 @@ def import_csv(motors, output, *, camera=None, reference=None, estimate=None, pa
     in [0, f_max]: :func:`neck_sim.logs.contract.check_plausible`); ValueError names the file.
     """
     params = default_params(3) if params is None else params
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
     files = {"motors": motors, "camera": camera, "reference": reference, "estimate": estimate}
     tables, ignored = {}, {}
     for kind, path in files.items():
         if path is not None:
-            tables[kind], ignored[kind] = read_csv_table(path, csv_columns(kind, n))
+            why = (f"the routing's {m} cables" if kind == "motors" else f"the neck's {n} joints")
+            tables[kind], ignored[kind] = read_csv_table(path, csv_columns(kind, n, m), why)
+            _refuse_extra_channels(path, kind, ignored[kind], csv_columns(kind, n, m), why)
     t0 = min(tab["t"][0] for tab in tables.values())
     shift = float(t0) if shift_time else 0.0
     if not shift_time and t0 < 0:
@@ -146,9 +165,9 @@ def import_csv(motors, output, *, camera=None, reference=None, estimate=None, pa
                          + ("" if shift_time else " (--shift-time subtracts the earliest time)"))
     events = []
     for kind, tab in tables.items():
-        cols = csv_columns(kind, n)[1:]
+        cols = csv_columns(kind, n, m)[1:]
         if kind == "motors":
-            arrays = (np.stack([tab[c] for c in cols[: n + 1]], 1), np.stack([tab[c] for c in cols[n + 1:]], 1))
+            arrays = (np.stack([tab[c] for c in cols[:m]], 1), np.stack([tab[c] for c in cols[m:]], 1))
         else:
             arrays = (np.stack([tab[c] for c in cols], 1),)
         t = tab["t"] - shift

@@ -45,7 +45,7 @@ class Strategy:
 
 
 def routing_strategies(base: NeckParams, n_cables: int = 4) -> list[Strategy]:
-    """Three routings of ``base``'s neck with ``n_cables`` (even, >= 4) cables; see the README.
+    """Three routings of ``base``'s neck with ``n_cables`` (even, >= 4) cables; see ``docs/designing-a-neck.md``.
 
     * ``segmented``: the neck is cut in two halves.  A proximal antagonist pair is side-routed to
       the middle joint; the distal pair is strut-routed through the proximal half (a strut pass has

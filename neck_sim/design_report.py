@@ -38,18 +38,26 @@ def _backbone(ax, pose, params, **kw):
     ax.plot(kin.frame_origin[:, 0], kin.frame_origin[:, 1], **kw)
 
 
+HEAD_ANGLE_LABEL = "head bar orientation, sum of alpha (deg)"
+"""The head angle is the sum of the joint angles, not wrapped: past +-180 deg the neck curls over
+itself (the model has no contact between bars, so such a pose may collide on a real neck)."""
+
+
 def _workspace_figure(results, path):
     fig, axes = _grid(len(results))
-    for ax, r in zip(axes, results):
+    angles = [np.degrees(r.workspace.head[r.workspace.feasible, 2]) for r in results]
+    vmax = max([float(np.max(np.abs(a))) for a in angles if a.size] or [1.0])
+    sc = None
+    for ax, r, ang in zip(axes, results, angles):
         ws, p = r.workspace, r.strategy.params
         f = ws.feasible
-        sc = ax.scatter(ws.head[f, 0], ws.head[f, 1], c=np.degrees(ws.head[f, 2]), s=6, cmap="coolwarm")
+        sc = ax.scatter(ws.head[f, 0], ws.head[f, 1], c=ang, s=6, cmap="coolwarm", vmin=-vmax, vmax=vmax)
         _backbone(ax, np.zeros(p.n_joints), p, color="k", lw=1)
         ax.set_aspect("equal")
-        ax.set_title(f"{r.strategy.name}: {100 * f.mean():.0f} % of samples")
+        ax.set_title(f"{r.strategy.name}: {100 * f.mean():.1f} % of samples")
         ax.set_xlabel("head x (m)")
-        fig.colorbar(sc, ax=ax, shrink=0.7, label="head angle (deg)")
-    axes[0].set_ylabel("head y (m)")
+        ax.set_ylabel("head y (m)")
+    fig.colorbar(sc, ax=list(axes), shrink=0.8, label=HEAD_ANGLE_LABEL)  # one scale for every routing
     fig.suptitle("Static-feasible workspace: head positions of stable equilibria, tensions in [f_min, f_max]")
     _save(fig, path)
 
@@ -65,9 +73,9 @@ def _joint_map_figure(results, path):
                            interpolation="nearest")
             fig.colorbar(im, ax=ax, shrink=0.7, label="alpha (deg)")
         ax.set_title(r.strategy.name)
-        ax.set_xlabel("joint")
+        ax.set_xlabel("joint (number)")
         ax.set_xticks(range(r.strategy.params.n_joints), [str(i + 1) for i in range(r.strategy.params.n_joints)])
-    axes[0].set_ylabel("feasible samples, sorted by head angle")
+        ax.set_ylabel("feasible samples, sorted by head orientation (count)")
     fig.suptitle("Joint-angle maps of the workspace")
     _save(fig, path)
 
@@ -89,6 +97,8 @@ def _shapes_figure(results, path):
                 _backbone(ax, sol.equilibrium.alpha, p, color=c, lw=2, label=name)
         ax.set_aspect("equal")
         ax.set_title(r.strategy.name)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
         ax.legend(loc="lower left", fontsize=8)
     fig.suptitle("Typical shapes: target (dashed / x), nearest reachable equilibrium (thick), friction band (thin)")
     _save(fig, path)
@@ -107,10 +117,10 @@ def _forces_figure(results, path):
         straight = next(iter(r.summary["straight"].values()))
         ax.bar(np.arange(m) + len(names) * width, straight["forces"], width, label="straight", color="0.6")
         ax.set_xticks(np.arange(m) + 0.4, [str(j + 1) for j in range(m)])
-        ax.set_xlabel("cable")
+        ax.set_xlabel("cable (number)")
         ax.set_title(r.strategy.name)
+        ax.set_ylabel("holding tension (N)")
         ax.legend(fontsize=8)
-    axes[0].set_ylabel("holding tension (N)")
     fig.suptitle("Tensions that hold the typical shapes")
     _save(fig, path)
 
@@ -123,7 +133,8 @@ def _stiffness_figure(results, path):
         if k.size:
             ax.hist(k, bins=30, histtype="step", lw=1.5, label=r.strategy.name)
     ax.set_xlabel("head lateral stiffness with held motors (N/m)")
-    ax.set_ylabel("workspace samples")
+    ax.set_ylabel("workspace samples (count)")
+    ax.set_title("Head lateral stiffness over the workspace")
     ax.legend()
     _save(fig, path)
 
@@ -145,7 +156,7 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
             passes = ", ".join(c["passes"]) if c["passes"] else "-"
             lines.append(f"  - cable {j + 1}: {c['side']}, passes [{passes}], ends at joint {c['ends_at']}")
     lines += ["", "## Workspace and stiffness", "",
-              "| routing | feasible | force-control stable | head area (cm^2) | head angle (deg) | "
+              "| routing | feasible | force-control stable | head area (cm^2) | head orientation, sum of alpha (deg) | "
               "workspace head stiffness median / 5 % (N/m) |", "|---|---|---|---|---|---|"]
     for r in results:
         w = r.summary["workspace"]
@@ -154,7 +165,10 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
             f"| {r.strategy.name} | {100 * w['feasible_fraction']:.1f} % | {100 * w['force_control_stable_fraction']:.1f} % "
             f"| {w['head_area_cm2']:.0f} | {'-' if ang is None else f'{ang[0]:.0f} .. {ang[1]:.0f}'} "
             f"| {_fmt(w['lateral_stiffness_median'])} / {_fmt(w['lateral_stiffness_p5'])} |")
-    lines += ["", "Straight pose held with the least tensions above a pretension: smallest eigenvalue of K_f "
+    lines += ["", "Head orientation: the sum of the joint angles, not wrapped to +-180 deg; beyond +-180 deg the "
+              "neck curls past a half turn (the model has no contact between bars: such poses may collide on "
+              "a real neck).", "",
+              "Straight pose held with the least tensions above a pretension: smallest eigenvalue of K_f "
               "(force control) and K_theta (held motors, elastic cables), N m/rad, and the head's lateral "
               "stiffness with held motors (N/m; negative: unstable).", "",
               "| routing | pretension (N) | tensions (N) | min eig K_f | min eig K_theta | uncontrolled modes | "

@@ -72,7 +72,7 @@ REWARD_MARGIN = math.radians(10.0)      # rad, error beyond the tolerance where 
 
 OPTIONS = ("params", "effects", "trajectory", "time_limit", "duration_scale", "move_time", "hold_time",
            "target_range", "observe_truth", "log_path", "reward_tolerance", "reward_margin",
-           "rigid_cables", "timestep")
+           "rigid_cables", "timestep", "live")
 """Keyword options of :func:`load`."""
 
 
@@ -165,7 +165,7 @@ class TrackingTask(base.Task):
                  move_time: float = MOVE_TIME, hold_time: float = HOLD_TIME,
                  target_range: float = RANDOM_TARGET_RANGE, observe_truth: bool = False,
                  reward_tolerance: float = REWARD_TOLERANCE, reward_margin: float = REWARD_MARGIN,
-                 log_path=None):
+                 log_path=None, live=None):
         super().__init__(random=random)
         self.params = params
         n = params.n_joints
@@ -180,6 +180,7 @@ class TrackingTask(base.Task):
         self._reward_tolerance, self._reward_margin = float(reward_tolerance), float(reward_margin)
         self._log_path = None if log_path is None else os.fspath(log_path)
         self._writer = None
+        self.live = live            # a neck_sim.live.LiveView fed like the log, or None
         self._episode = -1
         self._rate = params.control.rate_hz
         self.trajectory: Trajectory | Any = self._fixed
@@ -207,16 +208,22 @@ class TrackingTask(base.Task):
         self._ref = self._reference(physics.time())
         self._episode += 1
         self._open_log(physics)
+        if self.live is not None:
+            self.live.new_run()
+
+    def _sinks(self) -> list:
+        return [w for w in (self._writer, self.live) if w is not None]
 
     def before_step(self, action, physics: NeckPhysics) -> None:
         physics.set_control(action)
-        w = self._writer
-        if w is not None:
+        sinks = self._sinks()
+        if sinks:
             t = physics.time()
-            w.motors(t, physics.encoders(), physics.forces)
-            w.reference(t, self._ref[0])
-            tr = physics.truth()
-            w.truth(t, tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
+            theta, forces, tr = physics.encoders(), physics.forces, physics.truth()
+            for w in sinks:
+                w.motors(t, theta, forces)
+                w.reference(t, self._ref[0])
+                w.truth(t, tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
 
     def after_step(self, physics: NeckPhysics) -> None:
         self._ref = self._reference(physics.time())
@@ -229,8 +236,8 @@ class TrackingTask(base.Task):
         else:
             self._camera = np.array(frame[1], dtype=float)
             self._camera_new = 1.0
-            if self._writer is not None:
-                self._writer.camera(frame[0], frame[1])
+            for w in self._sinks():
+                w.camera(frame[0], frame[1])
 
     # -- specs
     def action_spec(self, physics: NeckPhysics) -> specs.BoundedArray:
@@ -325,6 +332,7 @@ class NeckEnvironment(control.Environment):
         rate = task.params.control.rate_hz
         super().__init__(physics, task, time_limit=time_limit, control_timestep=1.0 / rate)
         self._step_limit = max(1, int(round(time_limit * rate)))
+        self._owns_live = False       # load(live=True) opened the view: close() stops it
 
     def step(self, action):
         ts = super().step(action)
@@ -334,6 +342,8 @@ class NeckEnvironment(control.Environment):
 
     def close(self) -> None:
         self._task.close_log()
+        if self._task.live is not None and self._owns_live:
+            self._task.live.close()
         super().close()
 
 
@@ -380,6 +390,9 @@ def load(n_joints: int = 3, seed: int | None = None, **options) -> NeckEnvironme
       log_path: MCAP file of each episode (``{episode}`` in the path is replaced by the episode
         number; without it each episode overwrites the file).
       reward_tolerance, reward_margin (rad): the reward's tolerance (defaults 1 deg, 10 deg).
+      live: True serves every episode to Foxglove at ws://127.0.0.1:8765 in real time (stopped
+        by ``close()``), or a :class:`neck_sim.live.LiveView` of your own (its port and pace);
+        the same topics as the log (docs/live-view.md; needs foxglove-sdk).
     """
     unknown = sorted(set(options) - set(OPTIONS))
     if unknown:
@@ -415,8 +428,16 @@ def load(n_joints: int = 3, seed: int | None = None, **options) -> NeckEnvironme
     if not isinstance(trajectory, str):
         _check_trajectory(trajectory, params)
         duration = _positive("time_limit", options.get("time_limit", trajectory.duration))
+    live = options.get("live") or None
+    if live is not None and live is not True and not callable(getattr(live, "write_batch", None)):
+        raise ValueError(f"live: expected True or a neck_sim.live.LiveView, got {live!r}")
+    if live is True:
+        from neck_sim.live import LiveView
+        live = LiveView(params)
     task = TrackingTask(params, trajectory, random=seed, observe_truth=options.get("observe_truth", False),
                         reward_tolerance=_positive("reward_tolerance", options.get("reward_tolerance", REWARD_TOLERANCE)),
                         reward_margin=_positive("reward_margin", options.get("reward_margin", REWARD_MARGIN)),
-                        log_path=options.get("log_path"), **kw)
-    return NeckEnvironment(NeckPhysics.from_plant(plant), task, time_limit=duration)
+                        log_path=options.get("log_path"), live=live, **kw)
+    env = NeckEnvironment(NeckPhysics.from_plant(plant), task, time_limit=duration)
+    env._owns_live = options.get("live") is True
+    return env

@@ -12,7 +12,7 @@ top bar) and ``j{i}_C_bc`` (on ``bc``).  The top bar's frame is the analytic fra
 the middle of CD, x along C->D) and is the base bar of joint i+1; the base bar of joint 1 is the
 world.  Hence alpha_i = q(j{i}_A) + q(j{i}_D).
 
-Cables are spatial tendons ``c1``..``c{N+1}`` routed as in ``shared/design/geometry-and-errata.md``
+Cables are spatial tendons ``c1``..``c{N+1}`` routed as in ``docs/geometry-and-errata.md``
 (one z-row per cable, pulleys of radius r as wrap cylinders on the hinge axes, sidesites at 2r
 in the direction of the middle of each arc, a site between any two wraps).  Right cable j: case
 (d) on joints 1..j-1 (crossing the diagonal B->C and the top bar C->D through their midpoints),

@@ -9,8 +9,8 @@ are immutable and hashable; use ``np.asarray`` to compute with them.
 
 Each field carries ``metadata={"unit": ..., "source": ...}``; :func:`describe` prints them.
 
-Sources: "paper" is ``shared/paper`` (Table/section numbers are the paper's own); "design" is
-``shared/design/geometry-and-errata.md``; "assumption" is a value the paper does not give.
+Sources: "paper" is the paper cited in ``README.md`` (Table/section numbers are the paper's own); "design" is
+``docs/geometry-and-errata.md``; "assumption" is a value the paper does not give.
 """
 
 from __future__ import annotations

@@ -34,7 +34,7 @@ import numpy as np
 from neck_sim.atomic import atomic_write_bytes
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["RenderError", "Framing", "figure10_poses", "posed_data", "framing", "render_poses",
+__all__ = ["RenderError", "Framing", "cable_colours", "figure10_poses", "posed_data", "framing", "render_poses",
            "compose_figure", "render_figure10", "BACKENDS", "FIGURE10_TIMES"]
 
 BACKENDS = ("egl", "osmesa", "glfw")
@@ -135,14 +135,32 @@ def posed_data(alphas: Sequence, params: NeckParams | None = None):
     return model, out
 
 
+def cable_colours(sides) -> list[tuple[float, float, float]]:
+    """One RGB colour per cable, all different, for the cables' ``sides`` ("left"/"right", in
+    motor order): the paper's colours first (right cables blue, yellow, red, the first left cable
+    green), then the rest of ``_RIGHT_CABLES`` and matplotlib's tab20b and tab20c maps (43 more:
+    enough for the 32 cables the plant allows)."""
+    from matplotlib import colormaps
+    # tab20b/c come in groups of four shades of one hue: take one shade of every hue first
+    shades = [(name, k) for shade in range(4) for name in ("tab20b", "tab20c") for k in range(shade, 20, 4)]
+    spare = list(_RIGHT_CABLES[3:]) + [tuple(float(v) for v in colormaps[name](k)[:3]) for name, k in shades]
+    right, left = list(_RIGHT_CABLES[:3]), [_LEFT_CABLE]
+    out = []
+    for side in sides:
+        pool = left if side == "left" else right
+        out.append(pool.pop(0) if pool else spare.pop(0))
+    if len(out) > len(set(out)):  # only if a palette entry were repeated
+        raise RenderError("cable colours: two cables would share a colour")
+    return out
+
+
 def _restyle(model, params: NeckParams) -> None:
     """Picture colours and widths (visual fields only)."""
     import mujoco
     T, G = mujoco.mjtObj.mjOBJ_TENDON, mujoco.mjtObj.mjOBJ_GEOM
     n = params.n_joints
-    for j, side in enumerate(params.routing.sides, start=1):
+    for j, rgb in enumerate(cable_colours(params.routing.sides), start=1):
         t = mujoco.mj_name2id(model, T, f"c{j}")
-        rgb = _LEFT_CABLE if side == "left" else _RIGHT_CABLES[(j - 1) % len(_RIGHT_CABLES)]
         model.tendon_rgba[t] = (*rgb, 1.0)
         model.tendon_width[t] = _CABLE_WIDTH
     for i in range(1, n + 1):
@@ -237,7 +255,9 @@ def compose_figure(images: Sequence[np.ndarray], titles: Sequence[str], path, *,
     h, w = images[0].shape[:2]
     k = len(images)
     fs = float(np.clip(w / 32, 6, 12))            # title font (pt) that fits a panel's width
-    head, foot = 2.6 * fs / 72 + 0.1, 1.8 * fs / 72 + 0.05   # inches for the titles and the legend
+    ncol = min(len(legend or ()), 7)                          # legend columns; more entries wrap
+    rows = -(-len(legend or ()) // ncol) if ncol else 1
+    head, foot = 2.6 * fs / 72 + 0.1, 1.8 * rows * fs / 72 + 0.05   # inches for the titles and the legend
     H = h / dpi + head + foot
     fig = Figure(figsize=(k * w / dpi, H), dpi=dpi, facecolor="white")
     for i, (img, title) in enumerate(zip(images, titles)):
@@ -256,7 +276,7 @@ def compose_figure(images: Sequence[np.ndarray], titles: Sequence[str], path, *,
         fig.suptitle(suptitle, fontsize=fs * 1.05, y=1 - 0.05 / H, va="top")
     if legend:
         handles = [Line2D([], [], color=c, lw=3) for _, c in legend]
-        fig.legend(handles, [name for name, _ in legend], loc="lower center", ncol=len(legend), frameon=False,
+        fig.legend(handles, [name for name, _ in legend], loc="lower center", ncol=ncol, frameon=False,
                    fontsize=0.85 * fs, bbox_to_anchor=(0.5, 0.0), handlelength=1.5, columnspacing=1.2)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, facecolor="white")
@@ -274,6 +294,8 @@ def _fmt_pose(alpha: np.ndarray) -> str:
     deg = np.degrees(alpha)
     if np.allclose(deg, 0):
         return "straight"
+    if deg.size > 4:  # a long neck's list would overrun its panel's title
+        return f"α = [{deg[0]:.0f} .. {deg[-1]:.0f}]° ({deg.size} joints)"
     return "α = [" + ", ".join(f"{d:.0f}" for d in deg) + "]°"
 
 

@@ -80,7 +80,7 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
 class ReplayResult:
     """Replayed vs logged signals at the logged motor times (T samples).
 
-    theta/theta_log (T, N+1) rad: encoders; alpha/alpha_log (T, N) rad: true joint angles
+    theta/theta_log (T, m) rad: encoders; alpha/alpha_log (T, N) rad: true joint angles
     (alpha_log is None when the log has no truth).  ``notes``: assumptions made.
     """
 

@@ -1,9 +1,11 @@
 """Campaigns on a Dask distributed cluster (scheduler and workers on the loopback address only)."""
 
+import re
+
 import numpy as np
 import pytest
 
-from controllers.campaign import ClusterError, ExecutorSpec, open_executor
+from controllers.campaign import ClusterError, ExecutorSpec, open_executor, run_campaign
 from controllers.parallel import RunSpec, run_all
 from neck_sim.effects import Effects, ViscousFriction
 from neck_sim.logs import read_log
@@ -52,3 +54,222 @@ def test_blind_logs_generated_on_the_cluster_equal_local_ones(cluster, tmp_path)
     a, b = read_log(path, topics=("motors", "camera")), read_log(tmp_path / "here.mcap", topics=("motors", "camera"))
     np.testing.assert_array_equal(a.motors.theta, b.motors.theta)
     np.testing.assert_array_equal(a.camera.alpha, b.camera.alpha)
+
+
+# --- faults: the scheduler and its workers are separate processes started as docs/campaigns.md
+# says, so that the test can kill them; everything binds to 127.0.0.1 ------------------------------
+
+SCHEDULER = "dask scheduler --host 127.0.0.1 --port {port} --dashboard-address 127.0.0.1:{dash}"
+WORKER = "dask worker tcp://127.0.0.1:{port} --host 127.0.0.1 --dashboard-address 127.0.0.1:0 --nthreads 1"
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _dask(command: str, env=None, **fmt):
+    """``command`` (``dask ...``) as a process of its own group, quiet; ``env``: extra variables."""
+    import os
+    import subprocess
+    import sys
+
+    argv = command.format(**fmt).split()
+    module = {"scheduler": "distributed.cli.dask_scheduler", "worker": "distributed.cli.dask_worker"}[argv[1]]
+    return subprocess.Popen([sys.executable, "-m", module, *argv[2:]], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, **(env or {})})
+
+
+def _kill_group(proc) -> None:
+    import os
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait(timeout=10)
+
+
+@pytest.fixture
+def separate_cluster():
+    """(address, scheduler process, worker process); both killed at the end whatever happens."""
+    port = _free_port()
+    sched = _dask(SCHEDULER, port=port, dash=_free_port())
+    worker = _dask(WORKER, port=port)
+    try:
+        yield f"tcp://127.0.0.1:{port}", sched, worker
+    finally:
+        for p in (worker, sched):
+            _kill_group(p)
+
+
+def _kill_after(proc, seconds: float):
+    import threading
+
+    t = threading.Timer(seconds, _kill_group, args=(proc,))
+    t.start()
+    return t
+
+
+def _bounded(fn, *args, seconds: float = 30):
+    """The exception ``fn(*args)`` raises, run in a thread; fails the test if it is still waiting
+    after ``seconds`` (the fixture then kills the cluster, which ends the thread)."""
+    import threading
+
+    box = []
+
+    def target():
+        try:
+            fn(*args)
+        except BaseException as exc:
+            box.append(exc)
+
+    t = threading.Thread(target=target, daemon=True)
+    t.start()
+    t.join(seconds)
+    assert not t.is_alive(), f"still waiting after {seconds} s"
+    assert box, "no error raised"
+    return box[0]
+
+
+def test_a_cluster_whose_workers_all_died_fails_after_the_worker_timeout(separate_cluster):
+    import time
+
+    address, _, worker = separate_cluster
+    spec = ExecutorSpec(cluster=address, connect_timeout=30, worker_timeout=3)
+    with open_executor(spec) as ex:             # connected, one worker seen
+        t0 = time.monotonic()
+        _kill_after(worker, 1.0)                # the worker and its nanny, while the jobs run
+        exc = _bounded(lambda: run_campaign(time.sleep, [30] * 3, ex, progress=False), seconds=20)
+        waited = time.monotonic() - t0
+    assert isinstance(exc, ClusterError) and re.search(r"no Dask worker for 3 s while \d job\(s\) waited", str(exc))
+    assert 1.0 + 3 <= waited < 1.0 + 3 + 5, waited
+
+
+# a caller that turns SIGTERM into an exception as `neck-sim` does, then runs long jobs on the cluster
+_CALLER = """
+import signal, sys, time
+sys.path.insert(0, {root!r})
+from controllers.campaign import ExecutorSpec, open_executor, run_campaign
+
+def stop(signum, frame):
+    raise KeyboardInterrupt
+signal.signal(signal.SIGTERM, stop)
+try:
+    with open_executor(ExecutorSpec(cluster={address!r})) as ex:
+        print("connected", flush=True)
+        run_campaign(time.sleep, [30] * 3, ex, progress=False)
+except KeyboardInterrupt:
+    sys.exit(143)
+except Exception as exc:
+    print(f"{{type(exc).__name__}}: {{exc}}", file=sys.stderr)
+"""
+
+
+def _caller_outcome(address: str, fault, timeout: float):
+    """Start the caller on ``address``; once it runs its jobs, ``fault()``; returns (exit status,
+    stderr, seconds from the fault to the caller's exit)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    caller = subprocess.Popen([sys.executable, "-c", _CALLER.format(root=os.getcwd(), address=address)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert caller.stdout.readline() == "connected\n"
+        time.sleep(1.0)
+        t0 = time.monotonic()
+        fault(caller)
+        _, err = caller.communicate(timeout=timeout)
+        return caller.returncode, err, time.monotonic() - t0
+    finally:
+        caller.kill()
+
+
+def test_sigterm_ends_a_dask_campaign_at_once_and_quietly(separate_cluster):
+    import signal
+
+    address, _, worker = separate_cluster
+    status, err, waited = _caller_outcome(address, lambda caller: caller.send_signal(signal.SIGTERM), 30)
+    assert status == 143 and err == "", err
+    assert waited < 10, waited
+    assert worker.poll() is None                     # the cluster stays up for the next campaign
+
+
+def test_a_scheduler_that_dies_ends_the_campaign_with_one_line(separate_cluster):
+    address, sched, _ = separate_cluster
+    _, err, waited = _caller_outcome(address, lambda caller: _kill_group(sched), 25)
+    assert err.startswith("ClusterError: cluster tcp://127.0.0.1:") and "lost the connection" in err, err
+    assert err.count("\n") == 1, err                     # one line: no traceback, no log record
+    assert waited < 5, waited
+
+
+def test_a_job_that_kills_its_dask_worker_fails_naming_it_after_allowed_failures():
+    import os
+
+    # allowed-failures set where the scheduler starts, as docs/campaigns.md says; the nanny
+    # restarts the worker after each death
+    port = _free_port()
+    sched = _dask(SCHEDULER, env={"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "1"}, port=port, dash=_free_port())
+    worker = _dask(WORKER, port=port)
+    try:
+        spec = ExecutorSpec(cluster=f"tcp://127.0.0.1:{port}", connect_timeout=30, worker_timeout=30)
+        with open_executor(spec) as ex:
+            exc = _bounded(lambda: run_campaign(os._exit, [3], ex, labels=["crash"], progress=False), seconds=40)
+        assert isinstance(exc, RuntimeError) and re.match(r"job 'crash' failed: KilledWorker: .* on 2 different workers", str(exc)), exc
+    finally:
+        for p in (worker, sched):
+            _kill_group(p)
+
+
+def _listening(pid: int) -> set[str]:
+    """Addresses (``ip:port``) of the TCP sockets ``pid`` listens on (IPv4 and IPv6), from /proc."""
+    import os
+
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    out = set()
+    for table in ("tcp", "tcp6"):
+        with open(f"/proc/{pid}/net/{table}") as fh:
+            for line in fh.readlines()[1:]:
+                f = line.split()
+                if f[3] == "0A" and f[9] in inodes:           # LISTEN
+                    ip, port = f[1].split(":")
+                    raw = bytes.fromhex(ip)
+                    if len(raw) == 4:
+                        addr = ".".join(str(b) for b in raw[::-1])
+                    else:                                     # four little-endian words
+                        words = b"".join(raw[i:i + 4][::-1] for i in range(0, 16, 4))
+                        import ipaddress
+                        addr = str(ipaddress.IPv6Address(words))
+                    out.add(f"{addr}:{int(port, 16)}")
+    return out
+
+
+def test_the_documented_commands_listen_on_loopback_only(separate_cluster):
+    import pathlib
+    import time
+
+    import psutil
+
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "campaigns.md").read_text()
+    assert SCHEDULER.format(port=8786, dash=8787) in doc and WORKER.format(port=8786) in doc
+    address, sched, worker = separate_cluster
+    with open_executor(ExecutorSpec(cluster=address, connect_timeout=30)):
+        time.sleep(1.0)                          # every server of the worker is up once it registered
+        pids = [p.pid for p in (sched, worker)]
+        pids += [c.pid for p in pids for c in psutil.Process(p).children(recursive=True)]
+        listening = set().union(*(_listening(p) for p in pids))
+    assert len(listening) >= 4, listening        # scheduler, its dashboard, nanny, worker (and its dashboard)
+    assert all(a.startswith(("127.0.0.1:", "::ffff:127.0.0.1:", "::1:")) for a in listening), listening

@@ -64,11 +64,11 @@ def test_chunk_reductions_sum_to_the_score_difference():
     chunk = np.repeat(np.arange(S // 10), 10)
     split = Split(np.zeros(S, int), np.zeros(S, int), 3, chunk, (), "test")
     every = np.ones(S, bool)
-    red = chunk_reductions(base, cand, split, scales)
+    red = chunk_reductions(base, cand, split, scales, n)
     assert red.shape == (S // 10,)
-    assert red.sum() == pytest.approx(score(base, every, scales) - score(cand, every, scales), rel=1e-12)
-    assert improvement(score(base, every, scales), score(cand, every, scales)) == pytest.approx(
-        red.sum() / score(base, every, scales), rel=1e-12)
+    assert red.sum() == pytest.approx(score(base, every, scales, n) - score(cand, every, scales, n), rel=1e-12)
+    assert improvement(score(base, every, scales, n), score(cand, every, scales, n)) == pytest.approx(
+        red.sum() / score(base, every, scales, n), rel=1e-12)
 
 
 def test_small_rules():

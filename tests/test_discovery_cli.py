@@ -165,9 +165,11 @@ def test_score_and_paired_test():
     # 1 joint, 2 cables: the torque channel weighs one half, each cable channel one quarter
     ms = np.mean(res ** 2, 0) / scales ** 2
     expected = 0.5 * ms[0] + 0.25 * (ms[1] + ms[2])
-    assert score(res, np.ones(400, bool), scales) == pytest.approx(expected)
+    assert score(res, np.ones(400, bool), scales, 1) == pytest.approx(expected)
+    # 2 joints, 1 cable (not N + 1): each torque channel one quarter, the cable one half
+    assert score(res, np.ones(400, bool), scales, 2) == pytest.approx(0.25 * (ms[0] + ms[1]) + 0.5 * ms[2])
     res[::7, 0] = np.nan                            # slack samples are left out
-    assert np.isfinite(score(res, np.ones(400, bool), scales))
+    assert np.isfinite(score(res, np.ones(400, bool), scales, 1))
     assert wilcoxon_p(np.abs(rng.normal(size=30)) + 0.1) < 1e-5
     assert wilcoxon_p(rng.normal(size=30)) > 1e-3
     assert wilcoxon_p(np.zeros(30)) == 1.0

@@ -22,7 +22,7 @@ import pytest
 import neck_sim.analytic as an
 from neck_sim import effects as E
 from neck_sim import plant as P
-from neck_sim.params import default_params
+from neck_sim.params import default_params, example_params
 
 from identification.candidates import FitContext
 from identification.measured import MeasuredData
@@ -49,10 +49,10 @@ def _shape(cls, rng):
     return out
 
 
-def _magnitudes(cls, rng, n):
+def _magnitudes(cls, rng, n, m):
     out = {}
     for col in cls.columns:
-        count = len(col.names(n))
+        count = len(col.names(n, m))
         lo = 0.05                     # inside what to_plant keeps (it clips unphysical values)
         scale = {"N/m": 3000.0, "N s/m": 50.0, "kg": 0.05, "N": 8.0}.get(col.unit, 0.2)
         out[col.symbol] = scale * rng.uniform(lo, 1.0, count)
@@ -140,14 +140,17 @@ def _mujoco_spring_torque(alpha, params, effects):
     return out
 
 
+@pytest.mark.parametrize("neck", ["paper", "neck10x4"])
 @pytest.mark.parametrize("cls", WITH_COLUMNS, ids=ids(WITH_COLUMNS))
-def test_fitted_values_to_plant_give_the_columns_forces(cls, rng):
-    """design(...) @ values == plant physics(to_plant(values)) - plant physics(without the effect)."""
-    n = 3
+def test_fitted_values_to_plant_give_the_columns_forces(cls, neck, rng):
+    """design(...) @ values == plant physics(to_plant(values)) - plant physics(without the effect),
+    on the paper's neck and on the 10-joint, 4-cable one (columns sized by the routing)."""
+    p = example_params(neck)
+    n, m = p.n_joints, p.n_cables
     # linear cables in the nominal model, so that each cable effect alone is linear (eq 54, lambda = 0)
-    nominal = default_params(n).replace(**{"cables.lam": (0.0,) * (n + 1), "cables.t_cap": 1e4})
+    nominal = p.replace(**{"cables.lam": (0.0,) * m, "cables.t_cap": 1e4})
     d = _fake_data(nominal, rng)
-    shape, values = _shape(cls, rng), _magnitudes(cls, rng, n)
+    shape, values = _shape(cls, rng), _magnitudes(cls, rng, n, m)
     base = nominal
     for other in E.registered():            # without: no friction, rigid cables unless this adds to them
         if other is not cls and other.baseline and other.name not in cls.requires:
@@ -183,7 +186,8 @@ def test_names_units_and_json(cls):
     assert cls.name in E.names() and E.get(cls.name) is cls
     assert cls.description and "\n" not in cls.description and cls.__doc__ and len(cls.__doc__) > 60
     for col in cls.columns:
-        assert col.symbol and col.unit and len(col.names(3)) == {"cable": 4, "joint": 3, "spring": 6, "one": 1}[col.per]
+        assert col.symbol and col.unit and len(col.names(3, 4)) == {"cable": 4, "joint": 3, "spring": 6, "one": 1}[col.per]
+        assert len(col.names(10, 4)) == {"cable": 4, "joint": 10, "spring": 20, "one": 1}[col.per]
     for sh in cls.shapes:
         assert sh.name and sh.unit
     eff = cls()
@@ -208,9 +212,9 @@ def test_default_shape_lies_inside_its_grid(cls):
 @pytest.mark.parametrize("cls", SIGNED, ids=ids(SIGNED))
 def test_sign_constraint_rejects_a_wrong_signed_fit(cls, rng):
     col = next(c for c in cls.columns if c.signed)
-    count = len(col.names(3))
-    good = {c.symbol: rng.uniform(1.0, 2.0, len(c.names(3))) for c in cls.columns}
-    sig = {c.symbol: np.full(len(c.names(3)), 0.01) for c in cls.columns}
+    count = len(col.names(3, 4))
+    good = {c.symbol: rng.uniform(1.0, 2.0, len(c.names(3, 4))) for c in cls.columns}
+    sig = {c.symbol: np.full(len(c.names(3, 4)), 0.01) for c in cls.columns}
     assert cls.sign_violation(good, sig) == ""
     bad = dict(good)
     bad[col.symbol] = good[col.symbol].copy()

@@ -91,6 +91,40 @@ def run_import(tmp_path, *extra):
     return main(["import", "--motors", str(tmp_path / "m.csv"), *extra, "-o", str(tmp_path / "out.mcap")])
 
 
+def test_import_any_routing(tmp_path, capsys):
+    """10 joints, 4 cables: theta1..4, force1..4, alpha1..10 (not N + 1 motors); a file of another
+    neck is refused naming the expected columns, and nothing is written."""
+    p10 = P.example_params("neck10x4")
+    P.save(p10, tmp_path / "p10.toml")
+    arr = synthetic_arrays(p10, seconds=0.2, seed=1)
+    motors_csv(tmp_path / "m.csv", arr["motors"], 3)            # 3 joints on the paper's routing: 4 motors
+    camera_csv(tmp_path / "c.csv", arr["camera"], 10)
+    args = ["--camera", str(tmp_path / "c.csv"), "--params", str(tmp_path / "p10.toml")]
+    assert run_import(tmp_path, *args) == 0
+    assert "m = 4 cables" in capsys.readouterr().out
+    log = read_log(tmp_path / "out.mcap", require=("motors", "camera"))
+    assert log.params.routing == p10.routing and log.camera.alpha.shape[1] == 10
+    np.testing.assert_array_equal(log.motors.theta, arr["motors"]["theta"])
+    np.testing.assert_array_equal(log.camera.alpha, arr["camera"]["alpha"])
+    (tmp_path / "out.mcap").unlink()
+    # the paper's routing for 10 joints: 11 motors in the file, 4 cables in the routing
+    p_paper = P.default_params(10)
+    arr11 = synthetic_arrays(p_paper, seconds=0.2, seed=1)
+    motors_csv(tmp_path / "m.csv", arr11["motors"], 10)
+    assert run_import(tmp_path, *args) == 2
+    err = capsys.readouterr().err
+    assert "m.csv: column(s) theta5, theta6" in err and "beyond the routing's 4 cables" in err
+    assert "expected 4 per channel (theta1, theta2, theta3, theta4, force1, force2, force3, force4), found 11" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out.mcap").exists()
+    # too few: the missing columns named with the routing's reason
+    motors_csv(tmp_path / "m.csv", arr["motors"], 3)
+    camera_csv(tmp_path / "c.csv", {"t": arr["camera"]["t"], "alpha": arr["camera"]["alpha"][:, :3]}, 3)
+    assert run_import(tmp_path, *args) == 2
+    err = capsys.readouterr().err
+    assert "c.csv: missing column(s) alpha4, alpha5" in err and "needed for the neck's 10 joints: t, alpha1" in err
+    assert not (tmp_path / "out.mcap").exists()
+
+
 def test_import_errors_name_the_problem(tmp_path, capsys):
     head = ["t"] + [f"theta{j}" for j in range(1, 5)] + [f"force{j}" for j in range(1, 5)]
     write_csv(tmp_path / "m.csv", head[:-1], np.zeros((2, 8)))

@@ -1,4 +1,4 @@
-"""MCAP log writer and reader: the contract of shared/design/measured-data.md, round trips,
+"""MCAP log writer and reader: the contract of docs/data-contract.md, round trips,
 atomic writes, time windows through the index, and errors that name the problem."""
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from neck_sim.logs import LogWriter, neck_metadata
 
 def synthetic_arrays(params, seconds: float = 2.0, seed: int = 0) -> dict:
     """Full-precision random signals (with tiny, negative and integer-valued numbers) per topic."""
-    n = params.n_joints
+    n, m = params.n_joints, params.n_cables
     rate = params.control.rate_hz
     steps = int(round(seconds * rate))
     rng = np.random.default_rng(seed)
@@ -31,13 +31,13 @@ def synthetic_arrays(params, seconds: float = 2.0, seed: int = 0) -> dict:
     # joint angles within the joint range
     angle = params.geometry.alpha_max
     return {
-        "motors": {"t": t, "theta": sig(n + 1, 10.0),
-                   "force": np.minimum(np.abs(sig(n + 1, 30.0)), params.actuation.f_max)},
+        "motors": {"t": t, "theta": sig(m, 10.0),
+                   "force": np.minimum(np.abs(sig(m, 30.0)), params.actuation.f_max)},
         "camera": {"t": t[cam_idx], "alpha": np.clip(sig(n, 0.4), -angle, angle)[cam_idx]},
         "reference": {"t": t, "alpha_d": np.clip(sig(n, 0.4), -angle, angle)},
         "estimate": {"t": t, "alpha_hat": sig(n, 0.4)},
-        "truth": {"t": t, "alpha": sig(n, 0.4), "alpha_dot": sig(n), "tension": sig(n + 1, 20.0),
-                  "elongation": sig(n + 1, 1e-3)},
+        "truth": {"t": t, "alpha": sig(n, 0.4), "alpha_dot": sig(n), "tension": sig(m, 20.0),
+                  "elongation": sig(m, 1e-3)},
     }
 
 

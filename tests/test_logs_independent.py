@@ -13,6 +13,7 @@ import subprocess
 import pytest
 from test_logs_fixtures import synthetic_arrays, write_arrays
 
+from neck_sim.cache import cache_dir
 from neck_sim.logs import neck_metadata, read_log
 from neck_sim.params import default_params
 
@@ -60,7 +61,7 @@ def mcap_js():
     node, npm = shutil.which("node"), shutil.which("npm")
     if node is None or npm is None:
         pytest.skip("node/npm not installed: the independent TypeScript MCAP reader cannot run")
-    cache = os.environ.get("NECK_SIM_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "neck_sim")
+    cache = cache_dir()
     prefix = os.path.join(cache, "npm-" + "-".join(p.replace("@", "").replace("/", "_") for p in NPM_PACKAGES))
     if not os.path.exists(os.path.join(prefix, "node_modules", "@mcap", "core", "package.json")):
         os.makedirs(prefix, exist_ok=True)

@@ -131,9 +131,17 @@ def test_bad_measurements_are_refused(run, params):
     gap[100:] += 0.5
     with pytest.raises(ValueError, match="not evenly spaced"):
         prepare(Measurements(gap, th, f), params)
-    with pytest.raises(ValueError, match="parameters describe"):
-        from neck_sim.params import default_params
+    from neck_sim.params import default_params, example_params
+    with pytest.raises(ValueError, match=r"motors.theta: expected shape \(\d+, 5\) for the routing's 5 cables, "
+                                         r"got \(\d+, 4\)"):
         prepare(Measurements(t, th, f), default_params(4))
+    # the routing, not N + 1, sets the motors' width: 4 motors fit the 10-joint, 4-cable neck, whose
+    # camera must then show 10 joints
+    tc = t[::16]
+    cam3 = np.zeros((tc.size, 3))
+    with pytest.raises(ValueError, match=rf"camera.alpha: expected shape \({tc.size}, 10\) for the routing's "
+                                         rf"10 joints, got \({tc.size}, 3\)"):
+        prepare(Measurements(t, th, f, tc, cam3), example_params("neck10x4"))
 
 
 def test_chain_takes_any_control_rate_signal_to_the_slow_grid(run, params):

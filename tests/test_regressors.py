@@ -104,3 +104,29 @@ def test_models_need_the_camera(clean, p3):
                  lambda: reg.variable_stiffness_model(blind, p3, p3.friction.f_s)):
         with pytest.raises(ValueError, match="camera"):
             call()
+
+
+def test_friction_basis_follows_the_filtered_friction_not_the_filtered_speed(p3):
+    """A motor speed ringing at 8 Hz (+-12 rad/s) around a slow 1 rad/s: the friction the motor
+    feels, averaged over the ringing, is far below the friction at the filtered speed.  The slow-grid
+    basis must be the former (the forces on the slow grid carry that averaged friction)."""
+    from identification.preprocessing import Measurements, PreprocessSettings
+
+    rate = p3.control.rate_hz
+    t = np.arange(0.0, 12.0, 1.0 / rate)
+    speed = 1.0 + 12.0 * np.sin(2 * np.pi * 8.0 * t)                      # rad/s
+    theta = np.cumsum(speed) / rate
+    th = np.stack([theta, -theta, 0.5 * theta, theta], axis=1)
+    tc = np.arange(0.0, 12.0, 1.0 / 30.0)
+    meas = Measurements(t, th, np.full_like(th, 20.0), tc, np.zeros((tc.size, 3)))
+    prep = prepare(meas, p3, PreprocessSettings(motor_cutoff_hz=40.0, camera_cutoff_hz=2.0))
+    a = reg.slow_friction_basis(prep, p3)
+    # independent: the period average of eq (37)'s (2/pi) arctan(c_s v) over one 8 Hz cycle
+    phase = np.linspace(0.0, 2 * np.pi, 4001)[:-1]
+    avg = np.mean(2 / np.pi * np.arctan(p3.friction.c_s * (1.0 + 12.0 * np.sin(phase))))
+    mid = slice(20, -20)
+    np.testing.assert_allclose(a[mid, 0], avg, atol=0.01)
+    np.testing.assert_allclose(a[mid, 1], -avg, atol=0.01)
+    # the arctan of the filtered speed (1 rad/s) is far from it
+    at_filtered = 2 / np.pi * np.arctan(p3.friction.c_s * 1.0)
+    assert abs(at_filtered - avg) > 0.1

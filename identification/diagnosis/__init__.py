@@ -20,7 +20,7 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
    its parameters per cable where it is per cable, its shape parameters chosen on the training
    folds (a grid refined by a bounded 1-D search, scipy's ``minimize_scalar``; a bounded search
    per cable for the rest elongation), then cross-validated.
-4. **Score** ``S``: the mean square residual of each channel (N joint torques, N+1 cable
+4. **Score** ``S``: the mean square residual of each channel (N joint torques, m cable
    elongations) divided by the square of the baseline's primary training RMS of that channel,
    averaged within each residual type and then over the two types (each equation type counts
    one half, as the paper's weight W = 100 balances them).  A candidate is **significant** when

@@ -66,7 +66,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
         if term.shape not in cache:
             try:
                 f = ctx.fit(ctx.base.fit.model.plus(term))
-                cache[term.shape] = (score(f.residuals(), ctx.split.train, ctx.scales), term, f)
+                cache[term.shape] = (score(f.residuals(), ctx.split.train, ctx.scales, ctx.data.n), term, f)
             except ValueError as exc:
                 notes.append(str(exc))
                 cache[term.shape] = None
@@ -85,7 +85,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
     valid, why = sign_ok(fit, term)
-    return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales), cmp.improvement,
+    return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales, ctx.data.n), cmp.improvement,
                           cmp.holdout_improvement, ratio, cmp.p_holdout, cmp.p_train, valid,
                           valid and ctx.significant(cmp), why)
 

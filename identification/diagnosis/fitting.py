@@ -54,14 +54,14 @@ class StepContext:
 
     def compare(self, ref: Evaluated, cand: Evaluated, added: int) -> Comparison:
         """``cand`` against ``ref`` (both of this step's split), ``added`` parameters more."""
-        sc, split = self.scales, self.split
+        sc, split, n = self.scales, self.split, self.data.n
         every = np.ones(self.data.S, bool)
         dof = max(self.n_eff - cand.fit.n_params - added, 1)
         return Comparison(
-            improvement=improvement(score(ref.cv, every, sc), score(cand.cv, every, sc)),
-            holdout_improvement=improvement(score(ref.cv, split.holdout, sc), score(cand.cv, split.holdout, sc)),
-            p_holdout=wilcoxon_p(chunk_reductions(ref.cv, cand.cv, split, sc)),
-            p_train=f_test_p(score(ref.fit.residuals(), split.train, sc), score(cand.fit.residuals(), split.train, sc),
+            improvement=improvement(score(ref.cv, every, sc, n), score(cand.cv, every, sc, n)),
+            holdout_improvement=improvement(score(ref.cv, split.holdout, sc, n), score(cand.cv, split.holdout, sc, n)),
+            p_holdout=wilcoxon_p(chunk_reductions(ref.cv, cand.cv, split, sc, n)),
+            p_train=f_test_p(score(ref.fit.residuals(), split.train, sc, n), score(cand.fit.residuals(), split.train, sc, n),
                              added, dof))
 
     def significant(self, comparison: Comparison, factor: float = 1.0) -> bool:

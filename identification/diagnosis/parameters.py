@@ -95,7 +95,7 @@ def profile_sigma(ctx: StepContext, term: Term, key: str, h: float, fit_score: f
             f = ctx.fit(ctx.base.fit.model.plus(Term(term.name, shape)))
         except ValueError:
             return None
-        vals.append(score(f.residuals(), ctx.split.train, ctx.scales))
+        vals.append(score(f.residuals(), ctx.split.train, ctx.scales, ctx.data.n))
     curv = (vals[0] + vals[1] - 2 * fit_score) / h ** 2
     if not curv > 0:
         return None

@@ -67,7 +67,10 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     fits = [e.fit for e in evaluated]
     t1 = time.perf_counter()
     alpha = [None] * len(fits)
-    if s.alpha_hat:
+    if s.alpha_hat and data.C < data.n:
+        notes.append(f"alpha_hat not evaluated: eq (35) needs at least as many cables as joints "
+                     f"(this neck: {data.C} cables, {data.n} joints)")
+    elif s.alpha_hat:
         try:
             alpha = alpha_hat_errors(data, fits, split.holdout)
         except UnreachableError as exc:        # the motors reach no pose: reported, not fatal

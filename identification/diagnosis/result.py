@@ -133,7 +133,7 @@ def method_text(s: DiagnosisSettings) -> dict:
                  "folds in turn; residuals cross-validated (each block predicted by the model fitted on the other "
                  f"folds); the primary split trains on folds {train} and holds fold 1 out (alpha_hat, "
                  "re-simulation, written model)",
-        "score": "S = per channel (N torque, N+1 elongation) mean square residual / (primary baseline training "
+        "score": "S = per channel (N torque, m elongation) mean square residual / (primary baseline training "
                  "RMS)^2, averaged within each residual type, then over the two types",
         "significance": f"cross-validated improvement 1 - S_cand/S_base >= min_improvement ({s.min_improvement:g}), "
                         f"one-sided Wilcoxon signed-rank test over {s.chunk_s:g} s chunks p < alpha ({s.alpha:g}), "

@@ -131,7 +131,7 @@ def retune_shapes(data: MeasuredData, model: ModelSpec, split: Split, settings: 
                 fit = fit_model(data, with_value(v)[0], split.train, scales, state, iterations=settings.iterations)
             except ValueError:
                 return math.inf
-            return score(fit.residuals(), split.train, scales)
+            return score(fit.residuals(), split.train, scales, data.n)
 
         lo, hi = (np.log(v0 / span), np.log(span * v0)) if log_scale else (max(v0 - span, 0.0), v0 + span)
         u = minimise_bounded(cost, lo, hi, 0.02 * (hi - lo))

@@ -1,6 +1,6 @@
 """The score S and the significance tests of the diagnosis, as pure functions of residual arrays.
 
-Residuals are (S, N + C) arrays: N joint-torque channels (N m, eq 51) then C = N + 1 cable
+Residuals are (S, N + C) arrays: N joint-torque channels (N m, eq 51) then C cable
 elongation channels (m); NaN marks a slack cable's sample (left out).  ``scales`` (N + C,) are
 the baseline's per-channel training RMS.
 """
@@ -26,17 +26,21 @@ def mean_square(res: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(ok, r, 0.0).__pow__(2).sum(0) / np.maximum(ok.sum(0), 1)
 
 
-def channel_weights(n_channels: int) -> np.ndarray:
+def channel_weights(n_channels: int, n_joints: int) -> np.ndarray:
     """(N + C,) weights of the channels in S: each residual type (torque, cable) counts one half,
-    shared by its channels (C = N + 1), as the paper's W = 100 balances its two blocks."""
-    n = (n_channels - 1) // 2
-    return np.concatenate([np.full(n, 0.5 / n), np.full(n + 1, 0.5 / (n + 1))])
+    shared by its channels (N joints, C = ``n_channels`` - N cables of the routing), as the paper's
+    W = 100 balances its two blocks."""
+    n, c = n_joints, n_channels - n_joints
+    if n < 1 or c < 1:
+        raise ValueError(f"channel_weights: {n_channels} channels for {n_joints} joints")
+    return np.concatenate([np.full(n, 0.5 / n), np.full(c, 0.5 / c)])
 
 
-def score(res: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> float:
+def score(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints: int) -> float:
     """S: over ``mask``, the mean square residual of each channel / scale^2, averaged within each
-    residual type (joint torque, cable elongation) and then over the two types."""
-    return float(np.sum(channel_weights(scales.size) * mean_square(res, mask) / scales ** 2))
+    residual type (the first ``n_joints`` channels: joint torque; the rest: cable elongation) and
+    then over the two types."""
+    return float(np.sum(channel_weights(scales.size, n_joints) * mean_square(res, mask) / scales ** 2))
 
 
 def block_scores(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints: int) -> dict:
@@ -45,11 +49,12 @@ def block_scores(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints
     return {"torque": float(v[:n_joints].mean()), "cable": float(v[n_joints:].mean())}
 
 
-def chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Split, scales: np.ndarray) -> np.ndarray:
+def chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Split, scales: np.ndarray,
+                     n_joints: int) -> np.ndarray:
     """Per chunk, its share of S_base - S_cand over all samples (the shares sum to the difference)."""
     n = np.maximum(np.isfinite(base).sum(0), 1)
     d = (np.nan_to_num(base) ** 2 - np.nan_to_num(cand) ** 2) / n / scales ** 2      # (S, N + C)
-    return np.bincount(split.chunk, weights=d @ channel_weights(scales.size))
+    return np.bincount(split.chunk, weights=d @ channel_weights(scales.size, n_joints))
 
 
 def wilcoxon_p(reductions: np.ndarray) -> float:

@@ -75,6 +75,17 @@ def _sign(v: np.ndarray) -> np.ndarray:
     return np.tanh(v / scale)
 
 
+FEATURE_UNITS = {"motor speed": "rad/s", "sign of motor speed": "-", "motor acceleration": "rad/s^2",
+                 "joint angle": "rad", "joint speed": "rad/s", "sign of joint speed": "-",
+                 "joint acceleration": "rad/s^2", "tension": "N", "elongation": "m", "time": "s"}
+"""Unit of each state feature of :func:`state_features`, by name without its index."""
+
+
+def feature_unit(name: str) -> str:
+    """The unit of a feature named by :func:`state_features` ("motor speed 2" -> "rad/s")."""
+    return FEATURE_UNITS.get(name.rstrip("0123456789 "), "-")
+
+
 def state_features(data, tension: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
     """(names, (S, F)) the state features on the slow grid of ``data`` (a MeasuredData):
     motor speed, its sign and acceleration per cable; joint angle, speed, its sign and

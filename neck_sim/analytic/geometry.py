@@ -1,6 +1,6 @@
 """X-joint geometry and forward kinematics of the N-joint chain (paper §2.1, eqs 1, 2, 7).
 
-Conventions (held by tests, see ``shared/design/geometry-and-errata.md``):
+Conventions (held by tests, see ``docs/geometry-and-errata.md``):
 
 * One X-joint in its base-bar frame: x along A->B, y up, origin at the middle of AB,
   ``A = (-b/2, 0)``, ``B = (b/2, 0)``, ``C = A + l_l (-sin(a/2), cos(a/2))``,

@@ -9,12 +9,14 @@ import os
 from neck_sim import params as P
 
 
-def add_params_arguments(parser) -> None:
-    """``--params PATH`` and ``--n-joints N``: which neck a command works on."""
+def add_params_arguments(parser, default_n_joints: int = 3) -> None:
+    """``--params PATH`` and ``--n-joints N``: which neck a command works on (without either, the
+    paper's neck with ``default_n_joints`` X-joints, which the command sets when it is not 3)."""
+    neck = "the paper's neck" if default_n_joints == 3 else f"the paper's design with {default_n_joints} X-joints"
     parser.add_argument("--params", metavar="PATH",
-                        help="parameter file (.json/.toml, see `neck-sim params -o`); default: the paper's neck")
+                        help=f"parameter file (.json/.toml, see `neck-sim params -o`); default: {neck}")
     parser.add_argument("--n-joints", type=int, default=None,
-                        help="number of X-joints N (default 3, or the parameter file's)")
+                        help=f"number of X-joints N (default {default_n_joints}, or the parameter file's)")
 
 
 def load_params_file(path, option: str = "--params") -> P.NeckParams:
@@ -36,6 +38,19 @@ def params_from_args(args) -> P.NeckParams:
             raise ValueError(f"--n-joints {args.n_joints} contradicts {args.params} (n_joints = {params.n_joints})")
         return params
     return P.default_params(3 if args.n_joints is None else args.n_joints)
+
+
+def check_params_fit_log(params: P.NeckParams, log, path) -> None:
+    """Refuse ``--params`` whose neck is not the log's: joints, cables and routing (one line
+    naming the field, the file's and the log's value)."""
+    log_p = log.params
+    for field, mine, theirs in (("n_joints", params.n_joints, log_p.n_joints),
+                                ("n_cables", params.n_cables, log_p.n_cables)):
+        if mine != theirs:
+            raise ValueError(f"--params {path}: {field} = {mine}, the log's neck record has {theirs}")
+    if params.routing.segment_cases(params.n_joints).tolist() != log_p.routing.segment_cases(log_p.n_joints).tolist():
+        raise ValueError(f"--params {path}: routing.cables routes the cables differently from the log's neck record "
+                         f"(its 'routing' key); use the parameter file the log was recorded with")
 
 
 # -- option values: argparse names the option in its error ------------------------------------

@@ -16,7 +16,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--samples", type=positive_int, default=200, help="random poses (default 200)")
     parser.add_argument("--range-deg", type=positive_float, default=60.0,
                         help="poses uniform in [-range, range]^N degrees (default 60)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0)
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the random poses")
     parser.add_argument("--json", metavar="PATH", help="also write the table as JSON (atomically)")
     parser.add_argument("--dynamics", action="store_true",
                         help="also run the dynamics check: 10 s of constant antagonistic forces (loop gaps, "

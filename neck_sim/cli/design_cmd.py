@@ -6,20 +6,32 @@ import os
 
 from neck_sim.cli.common import add_params_arguments, check_paths, nonnegative_int, params_from_args
 
-HELP = ("compare cable routings for one neck (default: the 10-X neck): reachable workspace, stiffness, "
+# without --params or --n-joints: the paper's next neck, ten X-joints
+DEFAULT_N_JOINTS = 10
+
+HELP = (f"compare cable routings for one neck (default: the {DEFAULT_N_JOINTS}-X neck): reachable workspace, stiffness, "
         "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
 
 
 def add_arguments(parser) -> None:
-    add_params_arguments(parser)
+    add_params_arguments(parser, default_n_joints=DEFAULT_N_JOINTS)
     parser.add_argument("-o", "--out", metavar="DIR", default="design-report",
                         help="output directory (default ./design-report)")
-    parser.add_argument("--cables", type=int, default=4,
-                        help="cable count of the proposed strategies (even, >= 4; default 4)")
-    parser.add_argument("--samples", type=int, default=500, help="tension samples per routing (default 500)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0)
+    parser.add_argument("--cables", type=int, default=4, metavar="M",
+                        help="cable count of the proposed strategies (even, >= 4; default %(default)s)")
+    parser.add_argument("--samples", type=int, default=500, metavar="K",
+                        help="tension samples per routing (default %(default)s)")
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the tension samples")
     parser.add_argument("--no-strategies", action="store_true",
                         help="evaluate only the parameter file's routing")
+
+
+def neck_params(args):
+    """The neck to study: ``--params`` / ``--n-joints``, else the paper's design with
+    :data:`DEFAULT_N_JOINTS` X-joints (sets ``args.n_joints`` then)."""
+    if args.params is None and args.n_joints is None:
+        args.n_joints = DEFAULT_N_JOINTS
+    return params_from_args(args)
 
 
 def _candidates(params, args):
@@ -48,9 +60,7 @@ def run(args) -> int:
     check_paths(inputs={"--params": args.params}, dirs={"-o": args.out})
     if args.samples < 1:
         raise ValueError(f"--samples: need at least 1, got {args.samples}")
-    if args.params is None and args.n_joints is None:
-        args.n_joints = 10                          # the paper's next neck: ten X-joints
-    params = params_from_args(args)
+    params = neck_params(args)
     out = os.path.abspath(args.out)
     if args.params and os.path.abspath(args.params) in {os.path.join(out, f) for f in OUTPUT_FILES}:
         raise ValueError(f"-o {args.out}: would write over the parameter file {args.params}")

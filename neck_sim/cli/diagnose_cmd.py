@@ -5,13 +5,13 @@ from __future__ import annotations
 import os
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
-                                 positive_int, probability)
+from neck_sim.cli.common import (add_force_range_argument, check_params_fit_log, check_paths, load_params_file,
+                                 nonnegative_float, positive_int, probability)
 
 HELP = ("diagnose a log against a model: residuals, the missing effect (verdict), the extended model and its "
         "gain on held-out data")
 
-MODEL_HELP = ("baseline model: 'paper' (default: arctan friction + variable-stiffness cables), 'rigid' (rigid "
+MODEL_HELP = ("baseline model (default: %(default)s): 'paper' (arctan friction + variable-stiffness cables), 'rigid' (rigid "
               "cables, no friction, eq 25), 'rigid-friction', 'linear' (Table 1's constant stiffness), a "
               "comma-separated list of effect names, or a model.json written by a previous diagnosis")
 
@@ -56,10 +56,10 @@ def run(args) -> int:
                                  resimulate=not args.no_resim, **kw)
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
                    require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
+    if params is not None:
+        check_params_fit_log(params, log, args.params)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "
           f"model: {model.describe()}", file=sys.stderr)
-    if params is not None and params.n_joints != log.n_joints:
-        raise ValueError(f"--params {args.params}: {params.n_joints} joints, the log has {log.n_joints}")
     diag = diagnose_log(log, model, settings, params=params, progress=not args.quiet)
     print(format_summary(diag))               # its notes name what the reader accepted on request
     if args.json:

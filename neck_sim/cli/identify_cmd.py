@@ -4,20 +4,23 @@ from __future__ import annotations
 
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, check_paths, nonnegative_float, positive_float,
-                                 report_input_warnings)
+from neck_sim.cli.common import (add_force_range_argument, check_paths, load_params_file, nonnegative_float,
+                                 positive_float, report_input_warnings)
 
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
+    parser.add_argument("--params", metavar="FILE",
+                        help="nominal constants and routing (.json/.toml, 'neck-sim params' format) instead of the "
+                             "log's neck record; the tables compare with its friction and cable values per cable")
     parser.add_argument("--json", metavar="PATH", help="write the identified values, sigmas and errors as JSON")
     parser.add_argument("--plots", metavar="DIR", help="write figures 4-8 as PNG files into DIR")
     parser.add_argument("--start", type=nonnegative_float, default=None, help="use the log from this time on (s)")
     parser.add_argument("--end", type=nonnegative_float, default=None, help="use the log up to this time (s)")
     parser.add_argument("--models", default="friction,elastic,variable",
-                        help="comma-separated subset of friction,elastic,variable (default: all)")
+                        help="comma-separated subset of friction,elastic,variable (default: %(default)s, all three)")
     parser.add_argument("--motor-cutoff", type=positive_float, default=None, metavar="HZ",
                         help="Butterworth cutoff for encoders and forces (default: residual analysis)")
     parser.add_argument("--camera-cutoff", type=positive_float, default=None, metavar="HZ",
@@ -38,12 +41,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    check_paths(inputs={"LOG": args.log}, files={"--json": args.json}, dirs={"--plots": args.plots})
+    check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"--json": args.json}, dirs={"--plots": args.plots})
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
+    from neck_sim.cli.common import check_params_fit_log
     from neck_sim.logs import read_log
     from neck_sim.atomic import atomic_write_json
 
+    params = load_params_file(args.params) if args.params else None
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
     if args.bootstrap is not None and (args.bootstrap < 0 or args.bootstrap == 1):
         raise ValueError(f"--bootstrap: must be 0 or at least 2 replicates, got {args.bootstrap}")
@@ -54,13 +59,20 @@ def run(args) -> int:
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
     log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors",),
                    accept_out_of_range_forces=args.accept_out_of_range_forces)
+    if params is not None:
+        check_params_fit_log(params, log, args.params)
+    nominal = params or log.params
+    if args.simulators and not nominal.routing.is_paper_kind(nominal.n_joints):
+        raise ValueError(f"--simulators: cannot handle this log's routing ({nominal.n_joints} joints, "
+                         f"{nominal.n_cables} cables): the §5.6 comparison replays the run under the paper's "
+                         f"computed-torque law, which needs the paper's routing; identify without --simulators")
     if log.camera is None:
         raise ValueError(f"{args.log}: no /neck/camera topic; identification needs the camera's joint angles "
                          f"(joint torques of eq 38, elongations of eq 27) for the models {', '.join(models)}")
     print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
           file=sys.stderr)
-    result = identify_log(log, settings, models=models)
-    print(format_tables(result))
+    result = identify_log(log, settings, params=params, models=models)
+    print(format_tables(result, reference=f"--params {args.params}" if args.params else "nominal"))
     summary = result.to_dict()
     summary.update(report_input_warnings(log.warnings))
     comparison = None

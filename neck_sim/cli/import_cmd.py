@@ -6,8 +6,9 @@ from neck_sim.cli.common import add_force_range_argument
 
 HELP = "turn the prototype's motors/camera CSV files into an MCAP log (columns: see --help)"
 
-EPILOG = """CSV columns (header row, any order, extra columns ignored, SI units, N joints from --params):
-  motors:    t, theta1..theta{N+1} (rad), force1..force{N+1} (N)     -> /neck/motors
+EPILOG = """CSV columns (header row, any order, extra columns ignored, SI units; N joints and m cables from
+the --params routing, m = N + 1 on the paper's):
+  motors:    t, theta1..theta{m} (rad), force1..force{m} (N)         -> /neck/motors
   camera:    t, alpha1..alpha{N} (rad)                               -> /neck/camera
   reference: t, alpha_d1..alpha_d{N} (rad)                           -> /neck/reference
   estimate:  t, alpha_hat1..alpha_hat{N} (rad)                       -> /neck/estimate
@@ -44,7 +45,8 @@ def run(args) -> int:
                      estimate=args.estimate, params=params, shift_time=args.shift_time,
                      accept_out_of_range_forces=args.accept_out_of_range_forces)
     counts = ", ".join(f"{k} {v}" for k, v in res.counts.items())
-    print(f"wrote {res.path}: {counts} samples over {res.duration:.3f} s (N = {params.n_joints})")
+    print(f"wrote {res.path}: {counts} samples over {res.duration:.3f} s (N = {params.n_joints} joints, "
+          f"m = {params.n_cables} cables)")
     if res.time_shift:
         print(f"times shifted by {-res.time_shift:+.6f} s")
     for kind, cols in res.ignored_columns.items():

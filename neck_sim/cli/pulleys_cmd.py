@@ -11,9 +11,11 @@ HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increm
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--n-joints", type=positive_int, default=3)
-    parser.add_argument("--samples", type=positive_int, default=100_000)
-    parser.add_argument("--seed", type=nonnegative_int, default=0)
+    parser.add_argument("--n-joints", type=positive_int, default=3, metavar="N",
+                        help="X-joints of the paper's neck to study")
+    parser.add_argument("--samples", type=positive_int, default=100_000, metavar="K",
+                        help="random poses and force vectors the indicators are averaged over")
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the random samples")
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
 
 

@@ -33,7 +33,7 @@ def add_arguments(parser) -> None:
                         help="exit with status 1 when a joint angle drifts by more than DEG degrees")
     parser.add_argument("--json", metavar="PATH", help="also write the drift numbers as JSON")
     add_force_range_argument(parser)
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args) -> int:

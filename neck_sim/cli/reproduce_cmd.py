@@ -10,7 +10,8 @@ from neck_sim.cli.common import nonnegative_int, positive_float, positive_int
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce)")
+    parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce, in the current directory; a checkout's .gitignore "
+                             "ignores it at the root)")
     parser.add_argument("--quick", action="store_true",
                         help="half-length trajectories and fewer samples: the same stages in about a third of the time")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="plant seed (camera noise) (default 0)")
@@ -18,7 +19,8 @@ def add_arguments(parser) -> None:
                         help="local worker processes for the closed-loop runs (default: one per core; 1: serial)")
     parser.add_argument("--cluster", default=None, metavar="tcp://HOST:PORT",
                         help="run the closed-loop runs and the simulator comparison on this Dask scheduler "
-                             "(started with `dask scheduler`; workers with `dask worker ADDRESS --nthreads 1`)")
+                             "(docs/campaigns.md: `dask scheduler --host 127.0.0.1`, workers with `dask worker "
+                             "ADDRESS --host 127.0.0.1 --nthreads 1`); jobs fail after 30 s without any worker")
     parser.add_argument("--duration-scale", type=positive_float, default=None, metavar="S",
                         help="scale every trajectory's duration (default 1, or 0.5 with --quick)")
     parser.add_argument("--no-render", action="store_true", help="skip the offscreen rendering of figure 10")

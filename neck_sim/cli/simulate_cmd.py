@@ -41,6 +41,18 @@ def add_arguments(parser) -> None:
     add_params_arguments(parser)
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="camera-noise seed")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_live_arguments(parser)
+
+
+def add_live_arguments(parser) -> None:
+    """--live, --live-pace, --live-port (docs/live-view.md)."""
+    parser.add_argument("--live", action="store_true",
+                        help="serve the run to Foxglove at ws://127.0.0.1:PORT (needs foxglove-sdk: "
+                             "pip install 'neck-sim[live]'); the run starts when Foxglove connects")
+    parser.add_argument("--live-pace", choices=("realtime", "fast"), default="realtime",
+                        help="with --live: play at 1x simulated time, or as fast as it runs (default realtime)")
+    parser.add_argument("--live-port", type=nonnegative_int, default=8765, metavar="PORT",
+                        help="with --live: the WebSocket port on 127.0.0.1 (default 8765; 0: a free port)")
 
 
 
@@ -60,6 +72,8 @@ def _log_namer(args, trajectory: str, several: bool):
 
 
 def run(args) -> int:
+    if args.live:
+        return _run_live(args)
     from controllers import experiments as ex
     from controllers.trajectories import make_trajectory
 
@@ -128,3 +142,17 @@ def run(args) -> int:
         paths = save_run_plots(labelled, args.plots)
         print(f"plots: {len(paths)} PNG files in {os.path.abspath(args.plots)}")
     return 0
+
+
+def _run_live(args) -> int:
+    """The command with a live view open around its runs (they feed it between compiled chunks)."""
+    from neck_sim.live import LiveView
+
+    if args.live_port > 65535:
+        raise ValueError(f"--live-port: expected a TCP port 0..65535, got {args.live_port}")
+    with LiveView(params_from_args(args), port=args.live_port, pace=args.live_pace) as view:
+        print(f"live view: {view.url} -- in Foxglove: Open connection > Foxglove WebSocket > {view.url}; "
+              "the run starts when it connects (Ctrl-C to stop)", flush=True)
+        view.wait_for_client()
+        args.live = False
+        return run(args)

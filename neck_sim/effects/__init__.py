@@ -7,8 +7,8 @@ fitted result maps back to plant data, its prerequisites, and how the blind test
 plant, the diagnosis, the blind-log generator, the reports and the command line iterate over
 :func:`registered`; nothing else lists effect names.
 
-A new effect is a new class registered with :func:`register` (see the README, "Adding an
-effect"); the registry order is the report order.  ``dry_friction``, ``cable_elasticity`` and
+A new effect is a new class registered with :func:`register` (see ``docs/adding-an-effect.md``);
+the registry order is the report order.  ``dry_friction``, ``cable_elasticity`` and
 ``tension_stiffening`` are the paper's own model (``baseline``): the plant always has them (from
 ``NeckParams``); their classes map to those fields so that a diagnosis can name them and a plant
 option can override them.

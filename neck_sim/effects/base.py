@@ -34,7 +34,8 @@ regressor columns, linear in the effect's magnitudes once its shape parameters a
 **The blind tests** (:mod:`identification.blind`): ``blind_forms()`` -- how to hide the effect in a
 form that differs from the candidate's, at a test magnitude.
 
-Indices of per-cable arrays: 0..N-1 the right cables c1..cN, N the long left cable.
+Indices of per-cable arrays follow the routing's cables (``params.routing.cables``, m of them; on
+the paper's routing 0..N-1 the right cables c1..cN, N the long left cable); per-joint arrays have N.
 """
 
 from __future__ import annotations
@@ -116,12 +117,13 @@ class Column:
         if self.per not in ("cable", "joint", "spring", "one"):
             raise ValueError(f"Column.per: 'cable', 'joint', 'spring' or 'one', got {self.per!r}")
 
-    def names(self, n_joints: int) -> tuple[str, ...]:
+    def names(self, n_joints: int, n_cables: int) -> tuple[str, ...]:
+        """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables."""
         if self.per == "one":
             return (self.symbol,)
         if self.per == "spring":
             return tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
-        count = {"cable": n_joints + 1, "joint": n_joints}[self.per]
+        count = {"cable": n_cables, "joint": n_joints}[self.per]
         return tuple(f"{self.symbol}({i + 1})" for i in range(count))
 
 

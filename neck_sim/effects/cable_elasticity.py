@@ -17,7 +17,7 @@ __all__ = ["CableElasticity"]
 class CableElasticity(Effect):
     """Linear cable stiffness k (N/m) and damping c_a (N s/m), eq (39) -- baseline (``params.cables``).
 
-    ``None`` keeps the parameter; tuples have one value per cable (N+1).  In a diagnosis model
+    ``None`` keeps the parameter; tuples have one value per cable (m, the routing's).  In a diagnosis model
     its presence makes the cables elastic (eq 54); without it they are rigid (eq 25).
     """
 

@@ -49,7 +49,7 @@ class DryFriction(MotorEffect):
         return cls(f_s=params.friction.f_s, c_s=params.friction.c_s)
 
     def resolved(self, params: NeckParams) -> tuple[np.ndarray, float]:
-        """(f_s (N+1,), c_s) after applying this override to ``params``."""
+        """(f_s (m,), c_s) after applying this override to ``params``."""
         fs = np.asarray(params.friction.f_s, dtype=float).copy()
         if self.f_s is not None:
             idx = np.arange(params.n_cables) if self.cables is None else np.asarray(self.cables)
@@ -68,7 +68,7 @@ class DryFriction(MotorEffect):
         return arctan_friction(td, cs, fs)
 
     def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
-        """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., N+1)."""
+        """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., m)."""
         cs = self.c_s if self.c_s is not None else params.friction.c_s
         return arctan_friction(np.asarray(theta_dot, dtype=float), cs, 1.0)
 

@@ -18,7 +18,7 @@ __all__ = ["TensionStiffening"]
 class TensionStiffening(Effect):
     """Stiffness growing with tension, lambda (1/m) of eq (54): t = (k + lambda t) x + c_a x_dot.
 
-    Baseline (``params.cables.lam``); ``lam`` has one value per cable (N+1), ``None`` keeps it.
+    Baseline (``params.cables.lam``); ``lam`` has one value per cable (m, the routing's), ``None`` keeps it.
     """
 
     name: ClassVar[str] = "tension_stiffening"

@@ -29,7 +29,8 @@ import numpy as np
 from neck_sim.atomic import atomic_write_bytes, atomic_write_json
 from neck_sim.params import default_params
 
-__all__ = ["ReproduceSettings", "Reproduction", "reproduce", "paper_runs", "run_experiments"]
+__all__ = ["ReproduceSettings", "Reproduction", "reproduce", "paper_runs", "run_experiments", "FIGURE_CAPTIONS",
+           "ordered_figures"]
 
 
 @dataclass(frozen=True)
@@ -348,7 +349,43 @@ def _diagnosis_section(diag) -> str:
     return "\n".join(L)
 
 
+FIGURE_CAPTIONS = {
+    "fig4_torques.png": (4, "joint torques from the motor forces (Gamma_m = Z f, measured) against the dynamic "
+                            "model with friction (Gamma_rf) and without (Gamma_r), identification run"),
+    "fig5_tension_constant.png": (5, "cable tensions from the forces (eq 41) and from the elongation with "
+                                     "constant stiffness (eq 40)"),
+    "fig6_tension_error.png": (6, "tension reconstruction error against the tension from the forces, constant "
+                                  "stiffness"),
+    "fig7_tension_variable.png": (7, "cable tensions from the forces and from the elongation with "
+                                     "variable stiffness (eq 54)"),
+    "fig8_alpha.png": (8, "alpha_hat by eq (33) and eq (35) with the inextensible, constant- and "
+                          "variable-stiffness cable models, against the camera"),
+    "fig9_simulators.png": (9, "applied forces: the identification run against the simulators without "
+                               "friction and with the identified parameters"),
+    "fig10_configurations.png": (10, "the main configurations of the control test at 0, 4, 7 and 10 s "
+                                     "(MuJoCo, offscreen)"),
+    "angles_law_1.png": (11, "joint angles during control test 1 (law 1: friction and cable elasticity "
+                             "neglected): alpha_d, alpha_hat, the truth and the camera frames"),
+    "angles_law_2.png": (12, "joint angles during control test 2 (law 2: friction compensated, rigid cables)"),
+    "angles_law_3.png": (13, "joint angles during control test 3 (law 3: friction and cable elasticity)"),
+    "forces.png": (14, "commanded forces during control tests 1, 2 and 3"),
+    "estimation_error.png": (15, "estimation error e_alpha = alpha_hat - alpha_camera during control tests 1, "
+                                 "2 and 3"),
+    "tracking_error.png": (16, "tracking error e = alpha_hat - alpha_d during control tests 1, 2 and 3"),
+}
+"""Figure file -> (the paper's figure number, caption) for the report."""
+
+
+def ordered_figures(figures) -> list[str]:
+    """Figure file names in the paper's order (Fig. 4, 5, ... 16), figures the paper does not
+    have after them by name."""
+    known = sorted((FIGURE_CAPTIONS[n][0], n) for n in figures if n in FIGURE_CAPTIONS)
+    return [n for _, n in known] + sorted(n for n in figures if n not in FIGURE_CAPTIONS)
+
+
 def _report(settings, results, sections, figures, render_note, out) -> str:
+    from neck_sim.experiments.summary import summary_table
+
     t = results["timings_s"]
     L = ["# neck-sim: the paper reproduced in simulation", "",
          f"Generated {results['finished']} by `neck-sim reproduce{' --quick' if settings.quick else ''}` "
@@ -358,10 +395,16 @@ def _report(settings, results, sections, figures, render_note, out) -> str:
          "(Table 1) and variable-stiffness cables (Table 2) as its true values, so identification can be checked "
          "against the truth, and the controllers' model is close to the plant's: tracking is better than on the "
          "prototype, whose unmodelled effects the simulation does not have.", ""]
+    try:
+        L += ["## Summary", "", summary_table(results), ""]
+    except (KeyError, TypeError, IndexError):  # a stage did not give its numbers: its section says why
+        pass
     L += sections
-    L += ["## Figures", ""]
-    for name in sorted(figures):
-        L += [f"![{name}](figures/{name})", ""]
+    L += ["## Figures", "", "In the paper's order; each caption names the paper's figure it reproduces.", ""]
+    for name in ordered_figures(figures):
+        number, caption = FIGURE_CAPTIONS.get(name, (None, name))
+        label = f"Fig. {number}" if number else "Figure"
+        L += [f"![{label}: {caption}](figures/{name})", "", f"*{label} (`{name}`): {caption}*", ""]
     if render_note:
         L += [render_note, ""]
     L += ["## Files", "", "- `results.json`: every number above", "- `logs/*.mcap`: the runs (open in Foxglove)",

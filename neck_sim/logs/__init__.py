@@ -1,6 +1,6 @@
 """MCAP logs of neck runs: the contract, the writer and the reader.
 
-The layout is ``shared/design/measured-data.md``: measured topics ``/neck/motors``,
+The layout is ``docs/data-contract.md``: measured topics ``/neck/motors``,
 ``/neck/camera``, ``/neck/reference``, ``/neck/estimate``, the simulation-only ``/neck/truth``,
 the ``neck`` metadata record of nominal constants, the ``run`` record, the MJCF attachment, plus
 Foxglove's ``/tf`` (``foxglove.FrameTransforms``) and ``/neck/scene`` (``foxglove.SceneUpdate``).

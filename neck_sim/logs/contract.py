@@ -1,4 +1,4 @@
-"""The MCAP log contract of ``shared/design/measured-data.md``, written down once.
+"""The MCAP log contract of ``docs/data-contract.md``, written down once.
 
 Topics (JSON messages, one jsonschema per topic; ``log_time`` = ``publish_time`` = the sample time
 in integer ns since the start of the run; every message also carries ``t`` in float seconds):

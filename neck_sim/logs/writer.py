@@ -34,7 +34,7 @@ from neck_sim.logs.contract import (NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, Topi
                                     topic_schema)
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["LogWriter", "MJCF_ATTACHMENT"]
+__all__ = ["LogWriter", "MJCF_ATTACHMENT", "topic_layout"]
 
 MJCF_ATTACHMENT = "neck.xml"
 _MAX_NS = 2 ** 63 - 1            # readers hold log_time as int64 (MCAP: uint64 ns)
@@ -238,15 +238,10 @@ class LogWriter:
         return ch
 
     def _layout(self, spec: TopicSpec):
-        """(field lengths, payload template) of a topic, built once: ``{"t":..,"theta":[..],..}``."""
+        """(field lengths, payload template) of a topic, built once (:func:`topic_layout`)."""
         layout = self._layouts.get(spec.name)
         if layout is None:
-            lengths = spec.lengths(self._n, self.params.n_cables)
-            doc, column = {"t": jsonrecords.Slot(0)}, 1
-            for f, k in zip(spec.field_names, lengths):
-                doc[f] = [jsonrecords.Slot(column + i) for i in range(k)]
-                column += k
-            layout = self._layouts[spec.name] = (lengths, jsonrecords.template(doc))
+            layout = self._layouts[spec.name] = topic_layout(spec, self._n, self.params.n_cables)
         return layout
 
     def _write(self, spec: TopicSpec, t: float, arrays) -> int:
@@ -413,6 +408,17 @@ class LogWriter:
                 ch = self._channel(batch.topic, batch.schema_name, batch.schema)
                 self._append_encoded(ch, batch.template, batch.values, batch.log_ns)
                 self.counts[batch.topic] += len(batch.log_ns)
+
+
+def topic_layout(spec: TopicSpec, n_joints: int, n_cables: int) -> tuple[tuple[int, ...], jsonrecords.Template]:
+    """(field lengths, payload template) of a contract topic: ``{"t": .., "theta": [..], ..}``, the
+    values of a message being its row ``[t, *field 1, *field 2, ...]``."""
+    lengths = spec.lengths(n_joints, n_cables)
+    doc, column = {"t": jsonrecords.Slot(0)}, 1
+    for f, k in zip(spec.field_names, lengths):
+        doc[f] = [jsonrecords.Slot(column + i) for i in range(k)]
+        column += k
+    return lengths, jsonrecords.template(doc)
 
 
 def _drop_file(fh, tmp: str) -> None:

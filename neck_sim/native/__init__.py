@@ -7,7 +7,7 @@ drift (``tests/test_plant.py`` checks every offset against the C compiler's ``of
 the callback writes into the ``mjModel`` at each step is explained at the top of the C file.
 
 The library is built once per source text, MuJoCo version and include path into a cache directory
-(``$NECK_SIM_CACHE`` or ``~/.cache/neck_sim``); :func:`build` raises :class:`NativeBuildError`
+(:func:`neck_sim.cache.cache_dir`); :func:`build` raises :class:`NativeBuildError`
 when no compiler is available, and the plant then falls back to its Python callback.
 """
 
@@ -20,9 +20,10 @@ import os
 import re
 import shutil
 import subprocess
-import tempfile
 
 import mujoco
+
+from neck_sim.cache import cache_dir
 
 __all__ = ["SOURCE_PATH", "source", "MAX_CABLES", "PlantStruct", "struct_fields", "build", "NativeBuildError",
            "mujoco_include_dir", "mujoco_library", "link_flags", "compiler", "cache_dir"]
@@ -99,20 +100,6 @@ def compiler() -> str:
     if not cc:
         raise NativeBuildError("no C compiler (cc, gcc or clang) on PATH")
     return cc
-
-
-def cache_dir() -> str:
-    """Writable directory for compiled libraries: ``$NECK_SIM_CACHE``, ``~/.cache/neck_sim`` or a temp dir."""
-    d = os.environ.get("NECK_SIM_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "neck_sim")
-    try:
-        os.makedirs(d, exist_ok=True)
-        if os.access(d, os.W_OK):
-            return d
-    except OSError:
-        pass
-    d = os.path.join(tempfile.gettempdir(), f"neck_sim_cache_{os.getuid() if hasattr(os, 'getuid') else 0}")
-    os.makedirs(d, exist_ok=True)
-    return d
 
 
 def mujoco_library() -> str:

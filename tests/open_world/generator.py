@@ -18,6 +18,10 @@ and hides each effect by another mechanism than the candidate's:
   drum), cable creep (the cables lengthen in proportion to the integral of their tension), a
   camera scale error.
 
+Runs: :func:`simulate` (the paper's routing: a motor servo around the flat-output feed-forward of
+the identification shape) and :func:`simulate_reachable` (any routing, e.g. 10 joints and 4 cables:
+the nominal inverse-statics controller through the equilibria of tension waypoints).
+
 Each :class:`Spec` says what a correct diagnosis names (``expect``), where (0-based cable,
 joint, spring) and the magnitude to compare with, in the candidate's parameter units.
 """
@@ -87,11 +91,13 @@ def _dof(model, joint: str) -> int:
     return int(model.jnt_dofadr[_by_name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)])
 
 
-def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3) -> Spec:
+def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, params: NeckParams | None = None) -> Spec:
     """The blind case ``name`` at ``level`` x its test magnitude (times a factor in [0.8, 1.25]),
-    with the affected cable / joint / spring side drawn from ``seed``."""
+    with the affected cable / joint / spring side drawn from ``seed``, on the nominal neck
+    ``params`` (default: the paper's routing for ``n_joints``)."""
     rng = np.random.default_rng([seed, sum(map(ord, name))])
-    p = default_params(n_joints)
+    p = default_params(n_joints) if params is None else params
+    n_joints = p.n_joints
     factor = level * float(np.exp(rng.uniform(np.log(0.8), np.log(1.25))))
     cable, joint, side = int(rng.integers(p.n_cables)), int(rng.integers(n_joints)), int(rng.integers(2))
     ratio = _ratio(p)
@@ -235,6 +241,78 @@ def trajectory(params: NeckParams, sequences: int = 2, move_time: float = 0.8, h
     """The identification shape (§5.2.2), shortened: ``sequences`` of six cycloidal moves."""
     amps = paper_amplitudes(params.n_joints)[:sequences]
     return sequences_trajectory(amps, move_time, hold_time, name=f"open-world ({sequences} sequences)")
+
+
+BEND = 0.02
+LOW, HIGH = (35.0, 50.0), (65.0, 80.0)
+
+
+def reachable_waypoints(params: NeckParams, rng: np.random.Generator, moves: int) -> np.ndarray:
+    """Tension waypoints (moves + 1, m) N for a neck with fewer cables than N + 1: from 60 N on
+    every cable, each waypoint a common pretension alternating low (35-50 N) and high (65-80 N),
+    so every cable's tension sweeps about 30-45 N and its motor turns both ways, plus a bend:
+    each pair of antagonist cables (same end joint, opposite sides) pulls its side by up to
+    4 % of the pretension, the sign alternating, so the neck bends both ways in C and S shapes."""
+    m = params.n_cables
+    side = np.array([1.0 if c.side == "left" else -1.0 for c in params.routing.cables])
+    ends = np.array([c.ends_at for c in params.routing.cables])
+    groups = {e: ends == e for e in np.unique(ends)}
+    w = [np.full(m, 60.0)]
+    for k in range(moves):
+        P = rng.uniform(*LOW) if k % 2 == 0 else rng.uniform(*HIGH)
+        bend = np.zeros(m)
+        for g, sel in groups.items():
+            bend[sel] = (-1) ** k * rng.uniform(0.5, 1.0) * rng.choice((-1.0, 1.0)) * BEND * P
+        w.append(P + side * bend)
+    return np.array(w)
+
+
+def simulate_reachable(path, spec: Spec, seed: int, *, moves: int = 10, move_time: float = 1.5,
+                       hold_time: float = 0.4, write_truth: bool = False) -> str:
+    """:func:`simulate` for necks with fewer cables than N + 1: the nominal controller of such a
+    neck (``controllers.underactuated``: inverse statics and motor-angle PID on the nominal
+    constants, never told of the hidden effect) drives the plant with ``spec``'s hidden effect
+    through the equilibria of :func:`reachable_waypoints`; writes the measured topics (atomic)."""
+    from controllers.underactuated import ReachablePath, UnderactuatedController
+
+    p = nominal = spec.params
+    rng = np.random.default_rng([seed, 7])
+    traj = ReachablePath(nominal, reachable_waypoints(nominal, rng, moves), move_time=move_time, hold_time=hold_time)
+    rate = p.control.rate_hz
+    steps = int(round(traj.duration * rate)) + 1
+    t = np.arange(steps) / rate
+    ctrl = UnderactuatedController(nominal)
+    ref = ctrl.motor_reference(traj.sample(t))
+    plant = Plant(p, seed=seed)
+    plant.reset(alpha0=ref.alpha[0])
+    h = spec.hooks
+    if h.edit is not None:
+        h.edit(plant)
+    read = h.encoder or (lambda th: th)
+    ctrl.reset(ref.alpha[0], read(plant.encoders()))
+    theta_log, force_log, frames = np.empty((steps, p.n_cables)), np.empty((steps, p.n_cables)), []
+    truth = []
+    for k in range(steps):
+        theta = read(plant.encoders())
+        f = ctrl.step(theta, ref.at(k)).forces
+        theta_log[k], force_log[k] = theta, f
+        plant.step(h.force(k, f, plant) if h.force is not None else f)
+        if write_truth:
+            truth.append(plant.truth())
+        frame = plant.camera_frame()
+        if frame is not None:
+            frames.append(h.camera(*frame) if h.camera is not None else frame)
+    with LogWriter(path, nominal, run_info={"generator": "tests/open_world/generator.py", "hidden": spec.description,
+                                            "trajectory": "reachable path"}) as w:
+        for k in range(steps):
+            w.motors(float(t[k]), theta_log[k], force_log[k])
+            if write_truth:
+                tr = truth[k]
+                w.truth(float(t[k]), tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
+        for tc, ac in frames:
+            if tc <= t[-1]:
+                w.camera(float(tc), ac)
+    return os.fspath(path)
 
 
 def simulate(path, spec: Spec, seed: int, *, sequences: int = 2) -> str:

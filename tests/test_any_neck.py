@@ -1,0 +1,113 @@
+"""The data side for any routing: a log of the 10-joint, 4-cable neck through identify and diagnose.
+
+One log per module: 15.6 s of the nominal MuJoCo plant of ``neck-sim params --example neck10x4``
+moved through the equilibria of tension waypoints (``open_world.generator.simulate_reachable``:
+inverse statics and a motor PID; every cable's tension sweeps 35-80 N and its motor turns both
+ways), measured topics only.  The identification must give one row per cable of the routing,
+compared with the parameter file's values (never the paper's columns), and the plant's friction
+back; the diagnosis must size every column by the routing.
+
+What this short log allows (the 60 s run of ``benchmarks/bench_any_neck.py`` reaches f_s within
+4 %): f_s within 6.3 % (cable 1) here, so 8 % is asserted.  k and lambda separately are off by up to
+21 % on the soft cables: the 1 deg camera noise through ten joints' Z gives 0.4-0.5 mm of
+elongation noise against a 1.5-2 mm elongation range, an errors-in-variables bias that trades k
+against lambda; their sum at the working tension, k + 60 N lambda (the stiffness the tension rows
+see), is within 1 %, so that is asserted at 2 %.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from neck_sim.cli import main
+from neck_sim.params import default_params, example_params, save
+
+pytestmark = pytest.mark.slow
+
+SEED = 1
+
+
+@pytest.fixture(scope="module")
+def neck10(tmp_path_factory):
+    """(log path, parameter file, params) of the clean 10-joint, 4-cable run."""
+    from open_world.generator import make_spec, simulate_reachable
+
+    d = tmp_path_factory.mktemp("neck10x4")
+    p = example_params("neck10x4")
+    save(p, d / "p10.toml")
+    log = simulate_reachable(d / "clean.mcap", make_spec("none", SEED, params=p), SEED, moves=8)
+    return log, d / "p10.toml", p
+
+
+def test_identify_any_routing(neck10, tmp_path, capsys):
+    log, p10, p = neck10
+    out = tmp_path / "ident.json"
+    assert main(["identify", log, "--params", str(p10), "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"ours (relative sigma) | --params {p10} (our difference)" in text
+    assert "the paper's Tables 1-2 are for its 3-joint routing and are not compared" in text
+    rows = [line for line in text.splitlines() if line.startswith("cable ")]
+    assert [r.split()[1] for r in rows] == ["1", "2", "3", "4"] * 2          # Tables 1 and 2, one row per cable
+    assert "nan" not in text
+    assert "eq (35) needs at least as many cables as joints (this neck: 4 cables, 10 joints)" in text
+    res = json.loads(out.read_text())
+    assert res["paper"] is None
+    el, var = res["models"]["elastic"]["parameters"], res["models"]["variable"]["parameters"]
+    names = [n for n in el if n.startswith("f_s")]
+    assert names == ["f_s(1)", "f_s(2)", "f_s(3)", "f_s(4)"]
+    f_s = np.array([el[n]["value"] for n in names])
+    np.testing.assert_allclose(f_s, p.friction.f_s, rtol=0.08)
+    k = np.array([var[f"k({i})"]["value"] for i in range(1, 5)])
+    lam = np.array([var[f"lambda({i})"]["value"] for i in range(1, 5)])
+    np.testing.assert_allclose(k + 60.0 * lam, np.asarray(p.cables.k) + 60.0 * np.asarray(p.cables.lam), rtol=0.02)
+
+
+def test_diagnose_any_routing_with_a_nominal_file(neck10, tmp_path, capsys):
+    """``diagnose --params nominal.toml``: columns per cable (4) and per joint (10), not N + 1."""
+    log, p10, p = neck10
+    out = tmp_path / "diag.json"
+    assert main(["diagnose", log, "--params", str(p10), "--steps", "1", "--no-resim", "--quiet",
+                 "--candidates", "joint_friction,payload", "--json", str(out), "--report", str(tmp_path / "rep")]) == 0
+    capsys.readouterr()
+    d = json.loads(out.read_text())
+    names = list(d["baseline"]["parameters"])
+    assert [n for n in names if n.startswith("f_s(")] == [f"f_s({i})" for i in range(1, 5)]
+    assert [n for n in names if n.startswith("lambda(")] == [f"lambda({i})" for i in range(1, 5)]
+    assert {c["effect"] for c in d["steps"][0]["candidates"]} == {"joint_friction", "payload"}
+    assert any("alpha_hat not evaluated: eq (35) needs at least as many cables as joints" in n for n in d["notes"])
+    # the report's residual figures plot every joint against the motor speed of its strongest cable
+    assert (tmp_path / "rep" / "residuals_torque.png").stat().st_size > 0 and (tmp_path / "rep" / "report.md").exists()
+
+
+def test_what_the_routing_cannot_do_is_refused_in_one_line(neck10, tmp_path, capsys):
+    log, _, _ = neck10
+    assert main(["identify", log, "--simulators", "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err] and "--simulators: cannot handle this log's routing (10 joints, 4 cables)" in err
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
+    log, _, _ = neck10
+    other = tmp_path / "p10_paper.toml"
+    save(default_params(10), other)                  # 10 joints on the paper's routing: 11 cables
+    for cmd in (["identify", log, "--json", str(tmp_path / "o.json")],
+                ["diagnose", log, "--json", str(tmp_path / "o.json"), "--quiet"]):
+        assert main([*cmd, "--params", str(other)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1
+        assert f"--params {other}: n_cables = 11, the log's neck record has 4" in err
+        assert not (tmp_path / "o.json").exists()
+    # a parameter file whose per-cable arrays disagree with its own routing
+    good = neck10[1].read_text()
+    start = good.index("f_s = [")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good[:start] + "f_s = [1.0, 2.0, 3.0, 4.0, 5.0]" + good[good.index("]", start) + 1:])
+    assert main(["identify", log, "--params", str(bad), "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err]
+    assert "friction.f_s: expected 4 values (one per cable, 4 in routing.cables), got 5" in err
+    assert not (tmp_path / "o.json").exists()
