@@ -30,9 +30,12 @@ import numpy as np
 from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular, static_elongation
 from neck_sim.params import NeckParams
 
+from identification import gaps as gaps_mod
 from identification import regressors as reg
+from identification import uncertainty as unc
 from identification.least_squares import LSResult, solve_weighted
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
+from identification.uncertainty import N_BOOTSTRAP
 
 __all__ = ["PAPER", "IdentificationSettings", "IdentificationResult", "identify", "identify_log",
            "reconstruct_elongation", "format_tables", "paper_comparable", "CABLE_MODELS"]
@@ -70,6 +73,8 @@ class IdentificationSettings:
     c_a_estimator: float | None = None  # N s/m for eq (58); None = params.control.c_a_estimator
     reconstruct_alpha: bool = True     # §5.5 (costs about 1 s per minute of log)
     preprocess: PreprocessSettings = field(default_factory=PreprocessSettings)
+    bootstrap: int = N_BOOTSTRAP       # camera-noise replicates of the calibrated sigmas (0: HAC only)
+    seed: int = 0                      # of the bootstrap's noise
 
     def __post_init__(self):
         for name in ("weight", "slack_margin_s"):
@@ -78,6 +83,8 @@ class IdentificationSettings:
                 raise ValueError(f"{name}: must be {'positive' if name == 'weight' else '>= 0'}, got {v!r}")
         if not np.isfinite(self.slack_threshold):
             raise ValueError(f"slack_threshold: must be finite, got {self.slack_threshold!r}")
+        if not (isinstance(self.bootstrap, (int, np.integer)) and (self.bootstrap == 0 or self.bootstrap >= 2)):
+            raise ValueError(f"bootstrap: must be 0 or an integer >= 2, got {self.bootstrap!r}")
         if self.c_a_estimator is not None and not self.c_a_estimator > 0:
             raise ValueError(f"c_a_estimator: must be positive, got {self.c_a_estimator!r}")
 
@@ -104,6 +111,8 @@ class IdentificationResult:
     series: dict = field(default_factory=dict)
     notes: tuple = ()
     params: NeckParams | None = None   # the nominal constants identified with (their routing names the cables)
+    uncertainty: dict = field(default_factory=dict)   # model name -> uncertainty.Uncertainty
+    gaps: tuple = ()                                    # one line per parameter not identified
 
     @property
     def f_s(self) -> np.ndarray:
@@ -126,6 +135,12 @@ class IdentificationResult:
             "taut_fraction": None if self.taut_fraction is None else self.taut_fraction.tolist(),
             "notes": list(self.notes),
             "paper": PAPER if self.params is None or paper_comparable(self.params) else None,
+            "models_sigma": "eq (50), the paper's (independent residuals, exact regressors: 2-4x optimistic on "
+                            "filtered logs); the calibrated values and sigmas are under 'uncertainty'",
+            "uncertainty": {k: u.to_dict() for k, u in self.uncertainty.items()},
+            "not_identified": sorted({f"{k}: {n}" for k, u in self.uncertainty.items()
+                                      for n, ok in zip(u.names, u.identified) if not ok}),
+            "gaps": list(self.gaps),
         }
         return out
 
@@ -274,8 +289,52 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
         c_a = s.c_a_estimator or params.control.c_a_estimator
         alpha_error, a_series = _alpha_reconstruction(prep, params, cable_models, f_s, c_a, notes)
         series.update(a_series)
+    fits = {"friction": friction, "elastic": elastic, "variable": variable}
+    uncertainty, gap_lines = calibrated_uncertainty(prep, params, s, fits, dyn, taut, f_s, t_rhs)
     return IdentificationResult(friction, elastic, variable, torque_error, tension_error, alpha_error,
-                                taut.mean(axis=0), prep, s, series, tuple(notes), params)
+                                taut.mean(axis=0), prep, s, series, tuple(notes), params, uncertainty=uncertainty,
+                                gaps=tuple(gap_lines))
+
+
+def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: IdentificationSettings, fits: dict,
+                           dyn: reg.Dynamics, taut, f_s, tension) -> tuple[dict, list]:
+    """:class:`~identification.uncertainty.Uncertainty` per fitted model, and the gap lines.
+
+    ``fits`` maps model names to their :class:`LSResult` (or None); ``f_s`` (N+1,) N the friction
+    the variable-stiffness model was fitted with; ``tension`` (S, N+1) N is eq (55)'s with it.  See :mod:`identification.uncertainty` and
+    :mod:`identification.gaps`.
+    """
+    S, N = prep.n_samples, params.n_joints
+    models = tuple(m for m in ("elastic", "variable") if fits.get(m) is not None)
+    reps = (unc.camera_noise_bootstrap(prep, params, taut, weight=s.weight, models=models, settings=s.preprocess,
+                                       n=s.bootstrap, seed=s.seed) if s.bootstrap else {})
+    out, missing_by_model = {}, []
+    for name in ("friction", "elastic", "variable"):
+        res = fits.get(name)
+        if res is None:
+            continue
+        if name == "friction":
+            W, rows = reg.friction_model(prep, params, dyn).W, unc.row_samples(S, N, tension=False)
+        elif name == "elastic":
+            W, rows = reg.elastic_model(prep, params, weight=s.weight, taut=taut, dyn=dyn).W, unc.row_samples(S, N, taut)
+        else:
+            W = reg.variable_stiffness_model(prep, params, f_s, taut=taut).W
+            rows = unc.row_samples(S, N, taut, torque=False)
+        u = unc.calibrate(res, W, rows, S, reps.get(name), camera_noise=params.sensors.camera_noise)
+        if name == "elastic" and "friction" in out:
+            # eqs (44)-(45) share f_s with tension rows whose constant stiffness does not fit a
+            # tension-dependent cable, and the misfit leaks into f_s (0.1-0.4 N on a noise-free
+            # 85 s log); the torque rows alone (friction model) do not carry it.  The two models'
+            # disagreement on f_s measures that bias: it joins the elastic f_s sigma.
+            fs = np.array([n.startswith("f_s(") for n in u.names])
+            term = np.zeros(len(u.names))
+            term[fs] = u.value[fs] - out["friction"].value
+            u = u.with_model_term(term)
+        missing = gaps_mod.not_identified(u.value, u.sigma)
+        out[name] = u.with_identified(~missing)
+        missing_by_model.append((name, u.names, u.value, u.sigma, missing))
+    return out, gaps_mod.gap_lines(missing_by_model, tension=tension, x_c_dot=prep.x_c_dot, theta_dot=prep.theta_dot,
+                                   taut=taut)
 
 
 def _unphysical_notes(results: dict) -> list[str]:
@@ -423,5 +482,9 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None,
               + f"; {result.prepared.n_samples} samples at {result.prepared.rate_hz:.2f} Hz"]
     if result.taut_fraction is not None:
         lines.append("taut samples per cable: " + ", ".join(f"{100 * f:.1f} %" for f in result.taut_fraction))
+    if result.uncertainty:
+        lines += ["", unc.format_uncertainty(result.uncertainty)]
+    if result.gaps:
+        lines += ["", "Not identified by this log (what is missing, what to record):"] + [f"  {g}" for g in result.gaps]
     lines += list(result.notes)
     return "\n".join(lines)

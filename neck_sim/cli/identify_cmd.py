@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
     add_force_range_argument(parser)
     add_implausible_params_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
+    parser.add_argument("--bootstrap", type=int, default=None, metavar="N",
+                        help="camera-noise replicates behind the calibrated sigmas (default 40; 0: HAC sigma only, "
+                             "no bias correction); see docs/identification.md")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
                              "identified plant and compare with the log (§5.6, figure 9; minutes)")
@@ -49,8 +52,11 @@ def run(args) -> int:
 
     params = load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params else None
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    if args.bootstrap is not None and (args.bootstrap < 0 or args.bootstrap == 1):
+        raise ValueError(f"--bootstrap: must be 0 or at least 2 replicates, got {args.bootstrap}")
+    extra = {} if args.bootstrap is None else {"bootstrap": args.bootstrap}
     settings = IdentificationSettings(
-        weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
+        **extra, weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
     topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
     # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27

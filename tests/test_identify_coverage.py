@@ -1,0 +1,93 @@
+"""The sigmas ``identify`` reports cover the plant's true values at their nominal rates.
+
+One closed-loop run of the paper's 15 s control test (law 2) on the default MuJoCo plant with a
+perfect camera; 20 logs are made from it by adding the camera's Gaussian noise (1 deg per frame
+and joint, drawn here) to its frames.  That is the same as 20 plant seeds: the camera noise is the
+plant's only random draw and the controller never sees the camera (two plant seeds give the same
+motor topics bit for bit; only the camera frames differ), so the run itself does not depend on
+the seed.  Each log is identified with the calibrated sigmas (fewer bootstrap replicates than the
+CLI's 40, for time); per parameter group the share of estimates within 1 and 2 sigma of the truth
+must reach 55 % and 88 % (nominal 68 % and 95 %).  The paper's eq (50) sigmas, measured on the
+same logs, must fail that bar (they cover 17-28 % and 36-68 %): the test tells the two apart.
+
+The elastic model's k and c_a have no true value (a linear fit of a tension-dependent stiffness)
+and are not checked; c_a of the variable model is not identified on this log (checked: marked so),
+and most of the lambdas are.
+``benchmarks/bench_coverage.py`` measures the same on more seeds and on the 85 s identification run.
+"""
+
+import numpy as np
+import pytest
+
+from neck_sim.params import default_params
+
+pytestmark = pytest.mark.slow
+
+SEEDS = 20
+REPLICATES = 20
+GROUPS = (("friction", "f_s"), ("elastic", "f_s"), ("variable", "k"), ("variable", "lambda"))
+
+
+@pytest.fixture(scope="module")
+def quiet_run(tmp_path_factory):
+    from controllers.closed_loop import run_closed_loop
+    from controllers.computed_torque import ComputedTorqueController
+    from controllers.trajectories import make_trajectory
+    from identification.preprocessing import Measurements
+    from neck_sim.logs import read_log
+    from neck_sim.plant import Plant
+
+    p = default_params(3)
+    path = tmp_path_factory.mktemp("coverage") / "control_test.mcap"
+    run_closed_loop(Plant(p.replace(**{"sensors.camera_noise": 0.0}), seed=0), ComputedTorqueController(p, law=2),
+                    make_trajectory("control-test", p), log_path=path, progress=False)
+    return Measurements.from_log(read_log(path, topics=("motors", "camera"))), p
+
+
+@pytest.fixture(scope="module")
+def identified(quiet_run):
+    from identification.paper import IdentificationSettings, identify
+    from identification.preprocessing import Measurements, prepare
+
+    m, p = quiet_run
+    noise = np.radians(1.0)     # the paper's camera precision, independent of params.sensors
+    out = []
+    for seed in range(SEEDS):
+        rng = np.random.default_rng(7000 + seed)
+        noisy = Measurements(m.t_motor, m.theta, m.force, m.t_camera,
+                             m.alpha_camera + noise * rng.normal(size=m.alpha_camera.shape))
+        s = IdentificationSettings(reconstruct_alpha=False, bootstrap=REPLICATES, seed=seed)
+        out.append(identify(prepare(noisy, p), p, s).uncertainty)
+    return out, p
+
+
+def _truth(p, symbol):
+    return np.array({"f_s": p.friction.f_s, "k": p.cables.k, "lambda": p.cables.lam, "c_a": p.cables.c_a}[symbol])
+
+
+def _coverage(runs, p, model, symbol, value, sigma):
+    z = np.array([(u[model].group(value, symbol) - _truth(p, symbol)) / u[model].group(sigma, symbol) for u in runs])
+    return np.mean(np.abs(z) < 1), np.mean(np.abs(z) < 2)
+
+
+@pytest.mark.parametrize("model,symbol", GROUPS)
+def test_calibrated_sigmas_cover_the_truth(identified, model, symbol):
+    runs, p = identified
+    c1, c2 = _coverage(runs, p, model, symbol, "value", "sigma")
+    assert c1 >= 0.55 and c2 >= 0.88, f"{model} {symbol}: coverage {c1:.2f} (1 sigma), {c2:.2f} (2 sigma)"
+
+
+def test_the_papers_eq50_sigmas_fail_the_same_bar(identified):
+    runs, p = identified
+    failed = [g for g in GROUPS if (lambda c: c[0] < 0.55 or c[1] < 0.88)(_coverage(runs, p, *g, "value_ls", "sigma_eq50"))]
+    assert len(failed) >= 3, f"eq (50) passes for {set(GROUPS) - set(failed)}: the coverage bar does not discriminate"
+
+
+def test_damping_is_reported_as_not_identified(identified):
+    runs, _ = identified
+    flags = np.array([u["variable"].group("identified", "c_a") for u in runs])
+    assert not flags.any(), f"c_a marked identified in {np.count_nonzero(flags)} of {flags.size} estimates"
+    # lambda(2) and lambda(3) sit near the 20 % bar on this 15 s log (86 % of the estimates pass it
+    # here, 87 % over the benchmark's 30 seeds); the log never loses most of them
+    ok = np.array([u["variable"].group("identified", "lambda") for u in runs])
+    assert ok.mean() >= 0.8 and ok.sum(axis=1).min() >= 2, ok
