@@ -113,10 +113,10 @@ def run_step(data: MeasuredData, model: ModelSpec, split: Split, settings: Diagn
     from tqdm.auto import tqdm
 
     fit, scales = fit_baseline(data, model, split, settings, state)
-    ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
-    ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales)
     names = [n for n in settings.candidates
              if not model.has(n) and all(model.has(r) for r in effect_registry.get(n).requires)]
+    ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
+    ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales, family=len(names))
     cands = []
     for name in tqdm(names, desc=desc, unit="effect", disable=not progress, leave=False):
         cands.append(evaluate_candidate(ctx, name))
