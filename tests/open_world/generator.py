@@ -298,6 +298,10 @@ def combine(specs) -> Spec:
 CASES = ("none", "dry_friction", "viscous_friction", "viscous_friction_left", "stribeck_friction", "joint_friction",
          "spring_error", "payload", "actuation_delay", "camera_delay", "pretension", "pretension_left", "backlash",
          "backlash_all", "creep", "camera_scale", "cable_hysteresis")
+PAIRS = ("viscous_friction+payload", "spring_error+actuation_delay", "joint_friction+camera_delay",
+         "payload+pretension", "stribeck_friction+spring_error", "actuation_delay+camera_delay")
+"""Two effects hidden at once (:func:`combine`): on different channels or shapes, each at its
+test magnitude."""
 OUT_OF_VOCABULARY = ("creep", "camera_scale", "cable_hysteresis")
 """The out-of-vocabulary effects the blind tests require ``unexplained`` for."""
 
