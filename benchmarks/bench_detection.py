@@ -65,7 +65,14 @@ def alone(expect: str, names: list) -> bool:
 def _one(job):
     """One blind log, simulated and diagnosed on a campaign worker (in its own scratch directory)."""
     with tempfile.TemporaryDirectory(prefix="neck-sim-blind-") as directory:
-        return _one_in(job, directory)
+        try:
+            return _one_in(job, directory)
+        except Exception as exc:       # one failing log is a row of the table, not the end of the campaign
+            name, seed, level, excitation = (*job, "sequences")[:4]
+            return {"case": name, "seed": seed, "level": level, "excitation": excitation, "expect": "?",
+                    "magnitude": 0.0, "symbol": None, "fitted": None, "description": f"failed: {exc}",
+                    "verdict": f"failed: {type(exc).__name__}", "correct": False, "alone": False, "borderline": False,
+                    "located": None, "improvement": 0.0, "leftover": [], "t_sim": 0.0, "t_diag": 0.0}
 
 
 def _one_in(job, directory):
@@ -220,11 +227,10 @@ def report(results, how: str) -> str:
     return "\n".join(out)
 
 
-BEGIN, END = "<!-- bench_detection: begin -->", "<!-- bench_detection: end -->"
-
-
-def write_docs(path: str, text: str, command: str) -> None:
-    """Put the tables between the markers of ``path`` (atomic), with the commit measured."""
+def write_docs(path: str, text: str, command: str, name: str = "bench_detection") -> None:
+    """Put the tables between the markers ``<!-- name: begin -->`` and ``<!-- name: end -->`` of
+    ``path`` (atomic), with the commit measured."""
+    BEGIN, END = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     import subprocess
 
     from neck_sim.atomic import atomic_write_bytes
@@ -237,7 +243,7 @@ def write_docs(path: str, text: str, command: str) -> None:
                                capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         commit, dirty = "unknown", ""
-    block = (f"{BEGIN}\n<!-- written by benchmarks/bench_detection.py; do not edit by hand -->\n\n"
+    block = (f"{BEGIN}\n<!-- written by benchmarks/{name}.py; do not edit by hand -->\n\n"
              f"Measured on commit `{commit}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
              f"{text}\n{END}")
     with open(path) as fh:

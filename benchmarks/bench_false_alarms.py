@@ -15,7 +15,7 @@ simulations).
 
 Usage: ``python benchmarks/bench_false_alarms.py [--seeds 0,1,2,3,4] [--workers 2] [--logs DIR]
 [--only control-test,identification,multisine] [--laws 1,2,3] [--scales 1,0.5] [--jsonl PATH]
-[--from-jsonl PATH]``.
+[--from-jsonl PATH] [--docs docs/diagnosis.md]``.
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def _one(job_and_dir):
             t0 = time.perf_counter()
             diag = diagnose_clean(path, end)
             names = _names(diag.verdict)
-            top = max(diag.steps[0].candidates, key=lambda c: c.improvement, default=None)
+            top = max(diag.steps[0].candidates if diag.steps else (), key=lambda c: c.improvement, default=None)
             out.append({"excitation": kind, "law": law, "scale": scale, "seed": seed,
                         "length_s": round(min(duration, end or duration), 1), "verdict": "+".join(names),
                         "correct": "+".join(names) in OK,
@@ -134,10 +134,16 @@ def main(argv=None) -> int:
     ap.add_argument("--logs", default=None, help="keep (and reuse) the simulated logs in this directory")
     ap.add_argument("--jsonl", default=None)
     ap.add_argument("--from-jsonl", default=None)
+    ap.add_argument("--docs", default=None, help="write the table into this Markdown file between its markers")
     args = ap.parse_args(argv)
+    command = "python benchmarks/bench_false_alarms.py " + " ".join(argv or sys.argv[1:])
     if args.from_jsonl:
         with open(args.from_jsonl) as fh:
-            print(table([json.loads(x) for x in fh if x.strip()]))
+            text = table([json.loads(x) for x in fh if x.strip()])
+        print(text)
+        if args.docs:
+            from bench_detection import write_docs
+            write_docs(args.docs, text, command, "bench_false_alarms")
         return 0
     from controllers.campaign import ExecutorSpec, run_campaign
 
@@ -160,9 +166,12 @@ def main(argv=None) -> int:
     if args.jsonl:
         with open(args.jsonl, "a") as fh:
             fh.writelines(json.dumps(r) + "\n" for r in results)
-    print(f"# False alarms on clean logs\n\n{len(results)} diagnoses of {len(jobs)} clean logs in "
-          f"{time.perf_counter() - t0:.0f} s on {where.describe()}.\n")
-    print(table(results))
+    text = (f"{len(results)} diagnoses of {len(jobs)} clean logs in {time.perf_counter() - t0:.0f} s on "
+            f"{where.describe()}.\n\n" + table(results))
+    print(text)
+    if args.docs:
+        from bench_detection import write_docs
+        write_docs(args.docs, text, command, "bench_false_alarms")
     return 0
 
 

@@ -77,6 +77,13 @@ def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> Encompa
         head = ctx.compare(b.model, a.model, 0)
         wins = head.improvement >= 0.5 * ctx.settings.min_improvement and head.p_holdout < ctx.settings.alpha
         return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, wins, False)
+    half = 0.5 * ctx.settings.min_improvement
+    if b_to_a.improvement < 0 <= half <= a_to_b.improvement:
+        # B, with the shape it was searched with alone, makes A's held-out prediction worse: it
+        # adds nothing to A (its shape absorbed A's signal), while A improves on B
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, True, False)
+    if a_to_b.improvement < 0 <= half <= b_to_a.improvement:
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, False, True)
     # half the minimum improvement: the second effect only has to add to the first
     return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, ctx.significant(a_to_b, 0.5),
                             ctx.significant(b_to_a, 0.5))

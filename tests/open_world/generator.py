@@ -105,13 +105,17 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3) -> Sp
     no_dry = p.replace(**{"friction.f_s": (0.0,) * p.n_cables})
     if name == "none":
         return Spec(name, "none", 0.0, Hooks(), p, description="no hidden effect (noise only)")
-    if name == "dry_friction":                     # tanh Coulomb law on the commanded force, written here
+    if name in ("dry_friction", "dry_friction_all"):   # tanh Coulomb law on the commanded force, written here
         F, w0 = 10.0 * factor, 0.3
+        where = slice(None) if name == "dry_friction_all" else cable
 
         def force(k, f, pl):
             out = f.copy()
-            out[cable] -= F * np.tanh(pl.truth().theta_dot[cable] / w0)
+            out[where] -= F * np.tanh(pl.truth().theta_dot[where] / w0)
             return out
+        if name == "dry_friction_all":
+            return Spec(name, "dry_friction", F, Hooks(force=force), no_dry, "cable_elasticity,tension_stiffening",
+                        None, tuple(range(p.n_cables)), (), f"tanh Coulomb friction {F:.1f} N on every cable")
         return Spec(name, "dry_friction", F, Hooks(force=force), no_dry, "cable_elasticity,tension_stiffening",
                     f"f_s({cable + 1})", (cable,), (), f"tanh Coulomb friction {F:.1f} N on cable {cable + 1}")
     if name in ("viscous_friction", "viscous_friction_left"):   # MuJoCo damping on the motor slide
@@ -172,16 +176,24 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3) -> Sp
             pl.model.body_mass[b], pl.model.body_ipos[b], pl.model.body_inertia[b] = M0 + m, c, I
         return Spec(name, "payload", m, Hooks(edit=edit), p, symbol="payload",
                     description=f"{1e3 * m:.0f} g body 6 mm off the head bar's middle")
-    if name == "actuation_delay":                  # a FIFO of commands
+    if name in ("actuation_delay", "actuation_delay_one"):     # a FIFO of commands (on one motor only)
         d = 0.010 * factor
         lag = max(int(round(d * p.control.rate_hz)), 1)
         fifo: list = []
+        one = name == "actuation_delay_one"
 
         def force(k, f, pl):
             fifo.append(f.copy())
-            return fifo[max(len(fifo) - 1 - lag, 0)]
-        return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p, symbol="delay",
-                    description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)")
+            late = fifo[max(len(fifo) - 1 - lag, 0)]
+            if not one:
+                return late
+            out = f.copy()
+            out[cable] = late[cable]
+            return out
+        return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p,
+                    symbol=None if one else "delay", cables=(cable,) if one else (),
+                    description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)"
+                                + (f" on motor {cable + 1} only" if one else ""))
     if name == "camera_delay":                     # frames restamped late
         d = 0.033 * factor
         return Spec(name, "camera_delay", d, Hooks(camera=lambda t, a: (t + d, a)), p, symbol="delay",
@@ -239,7 +251,7 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3) -> Sp
         return Spec(name, UNEXPLAINED, s - 1, Hooks(camera=lambda t, a: (t, s * a)), p,
                     description=f"camera angles x {s:.3f}")
     if name == "cable_hysteresis":                 # out of vocabulary: a cable whose tension lags its stretch
-        h = 3.0 * factor                            # N of hysteresis on a right cable
+        h = 6.0 * factor                            # N of hysteresis on a right cable
         cable = cable % n_joints
         state = {}
 
@@ -295,9 +307,9 @@ def combine(specs) -> Spec:
                 description=" and ".join(s.description for s in specs))
 
 
-CASES = ("none", "dry_friction", "viscous_friction", "viscous_friction_left", "stribeck_friction", "joint_friction",
-         "spring_error", "payload", "actuation_delay", "camera_delay", "pretension", "pretension_left", "backlash",
-         "backlash_all", "creep", "camera_scale", "cable_hysteresis")
+CASES = ("none", "dry_friction", "dry_friction_all", "viscous_friction", "viscous_friction_left", "stribeck_friction",
+         "joint_friction", "spring_error", "payload", "actuation_delay", "actuation_delay_one", "camera_delay",
+         "pretension", "pretension_left", "backlash", "backlash_all", "creep", "camera_scale", "cable_hysteresis")
 PAIRS = ("viscous_friction+payload", "spring_error+actuation_delay", "joint_friction+camera_delay",
          "payload+pretension", "stribeck_friction+spring_error", "actuation_delay+camera_delay")
 """Two effects hidden at once (:func:`combine`): on different channels or shapes, each at its
