@@ -46,7 +46,7 @@ def test_effects_container():
     with pytest.raises(ValueError, match="viscous_friction"):
         E.Effects(viscous_friction=E.Payload(0.1))
     with pytest.raises(ValueError, match="unknown effect"):
-        E.make_effect("backlash")
+        E.make_effect("gear_creep")
 
 
 @pytest.mark.parametrize("make, match", [
