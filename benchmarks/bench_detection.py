@@ -19,9 +19,15 @@ and the fitted magnitude.  Prints Markdown:
 The blind logs are simulated and diagnosed on a campaign executor (:mod:`controllers.campaign`):
 local worker processes (``--workers``), or a Dask cluster (``--cluster tcp://HOST:PORT``).
 
+Also: two effects hidden at once (``--pairs default``: the generator's ``PAIRS``, two forward
+steps, correct when both are named), the share of logs whose verdict is the hidden name alone,
+borderline verdicts, and the same on a random multisine (``--excitations sequences,multisine``).
+
 Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5,1,2] [--workers 2]
-[--cluster tcp://HOST:PORT] [--negatives 20] [--cases a,b] [--jsonl PATH] [--from-jsonl PATH]
-[--skip-timing]``; ``--from-jsonl`` prints the tables of a previous run.
+[--cluster tcp://HOST:PORT] [--negatives 20] [--cases a,b] [--pairs default] [--excitations
+sequences,multisine] [--jsonl PATH] [--from-jsonl PATH] [--docs docs/diagnosis.md] [--skip-timing]``;
+``--from-jsonl`` prints the tables of a previous run; ``--docs`` writes them, with the commit
+measured, between the ``bench_detection`` markers of a Markdown page.
 """
 
 from __future__ import annotations
