@@ -233,9 +233,10 @@ def report(results, how: str) -> str:
     return "\n".join(out)
 
 
-def write_docs(path: str, text: str, command: str, name: str = "bench_detection") -> None:
+def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None) -> None:
     """Put the tables between the markers ``<!-- name: begin -->`` and ``<!-- name: end -->`` of
-    ``path`` (atomic), with the commit measured."""
+    ``path`` (atomic), with the commit measured (``commit``: the one a ``--from-jsonl`` run's
+    results were measured on; default the checkout's HEAD)."""
     BEGIN, END = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     import subprocess
 
@@ -243,14 +244,16 @@ def write_docs(path: str, text: str, command: str, name: str = "bench_detection"
 
     root = os.path.dirname(os.path.abspath(path))
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
-                                check=True).stdout.strip()
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
+                              check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
                                capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
-        commit, dirty = "unknown", ""
+        head, dirty = "unknown", ""
+    if commit is not None:                 # results of an earlier run: its commit, not the checkout's state
+        head, dirty = commit, ""
     block = (f"{BEGIN}\n<!-- written by benchmarks/{name}.py; do not edit by hand -->\n\n"
-             f"Measured on commit `{commit}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
+             f"Measured on commit `{head}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
              f"{text}\n{END}")
     with open(path) as fh:
         old = fh.read()
@@ -360,6 +363,7 @@ def main(argv=None) -> int:
     ap.add_argument("--excitations", default="sequences", help="sequences,multisine")
     ap.add_argument("--multisine-cases", default=None, help="cases run on the multisine (default: --cases)")
     ap.add_argument("--docs", default=None, help="write the tables into this Markdown file between its markers")
+    ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
     args = ap.parse_args(argv)
     if args.timing_only:
         print(timing())
@@ -371,7 +375,8 @@ def main(argv=None) -> int:
         text = report(results, "from " + args.from_jsonl)
         print(text)
         if args.docs:
-            write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]))
+            write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
+                       commit=args.commit)
         return 0
     from controllers.campaign import ExecutorSpec, run_campaign
 

@@ -118,7 +118,8 @@ def table(results) -> str:
                  f"({sum(r['verdict'] == 'none' for r in results)} `none`, "
                  f"{sum(r['verdict'] == 'insufficient_excitation' for r in results)} `insufficient_excitation`).")
     for r in fa:
-        lines.append(f"- {r['excitation']} law {r['law']} x{r['scale']:g} seed {r['seed']} ({r['length_s']} s): "
+        what = "multisine" if r["excitation"] == "multisine" else f"{r['excitation']} law {r['law']} x{r['scale']:g}"
+        lines.append(f"- {what} seed {r['seed']} ({r['length_s']} s): "
                      f"`{r['verdict']}`" + (f" -- {r['leftover'][0]}" if r["leftover"] else ""))
     return "\n".join(lines)
 
@@ -135,6 +136,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jsonl", default=None)
     ap.add_argument("--from-jsonl", default=None)
     ap.add_argument("--docs", default=None, help="write the table into this Markdown file between its markers")
+    ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
     args = ap.parse_args(argv)
     command = "python benchmarks/bench_false_alarms.py " + " ".join(argv or sys.argv[1:])
     if args.from_jsonl:
@@ -143,7 +145,7 @@ def main(argv=None) -> int:
         print(text)
         if args.docs:
             from bench_detection import write_docs
-            write_docs(args.docs, text, command, "bench_false_alarms")
+            write_docs(args.docs, text, command, "bench_false_alarms", commit=args.commit)
         return 0
     from controllers.campaign import ExecutorSpec, run_campaign
 
