@@ -19,9 +19,15 @@ and the fitted magnitude.  Prints Markdown:
 The blind logs are simulated and diagnosed on a campaign executor (:mod:`controllers.campaign`):
 local worker processes (``--workers``), or a Dask cluster (``--cluster tcp://HOST:PORT``).
 
+Also: two effects hidden at once (``--pairs default``: the generator's ``PAIRS``, two forward
+steps, correct when both are named), the share of logs whose verdict is the hidden name alone,
+borderline verdicts, and the same on a random multisine (``--excitations sequences,multisine``).
+
 Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5,1,2] [--workers 2]
-[--cluster tcp://HOST:PORT] [--negatives 20] [--cases a,b] [--jsonl PATH] [--from-jsonl PATH]
-[--skip-timing]``; ``--from-jsonl`` prints the tables of a previous run.
+[--cluster tcp://HOST:PORT] [--negatives 20] [--cases a,b] [--pairs default] [--excitations
+sequences,multisine] [--jsonl PATH] [--from-jsonl PATH] [--docs docs/diagnosis.md] [--skip-timing]``;
+``--from-jsonl`` prints the tables of a previous run; ``--docs`` writes them, with the commit
+measured, between the ``bench_detection`` markers of a Markdown page.
 """
 
 from __future__ import annotations
@@ -35,7 +41,8 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+_ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+sys.path[:0] = [_ROOT, os.path.join(_ROOT, "tests")]     # this checkout's code, not the installed one
 
 
 def _names(verdict) -> list:
@@ -43,38 +50,58 @@ def _names(verdict) -> list:
 
 
 def correct(expect: str, names: list) -> bool:
-    """A named effect: the verdict's first name; out of vocabulary: ``unexplained`` in the
-    verdict (alone or with other names, never a single wrong name)."""
+    """A named effect: the verdict's first name; two effects at once (``a+b``): both names in the
+    verdict; out of vocabulary: ``unexplained`` in the verdict (alone or with other names, never a
+    single wrong name)."""
     from open_world.generator import UNEXPLAINED
 
     if expect == UNEXPLAINED:
         return UNEXPLAINED in names
+    if "+" in expect:
+        return set(expect.split("+")) <= set(names)
     return names[0] == expect
+
+
+def alone(expect: str, names: list) -> bool:
+    """The verdict is exactly what was hidden: the name alone (both names for a pair, in any
+    order; ``unexplained`` alone or beside nothing else for an effect outside the vocabulary)."""
+    return sorted(names) == sorted(expect.split("+"))
 
 
 def _one(job):
     """One blind log, simulated and diagnosed on a campaign worker (in its own scratch directory)."""
     with tempfile.TemporaryDirectory(prefix="neck-sim-blind-") as directory:
-        return _one_in(job, directory)
+        try:
+            return _one_in(job, directory)
+        except Exception as exc:       # one failing log is a row of the table, not the end of the campaign
+            name, seed, level, excitation = (*job, "sequences")[:4]
+            return {"case": name, "seed": seed, "level": level, "excitation": excitation, "expect": "?",
+                    "magnitude": 0.0, "symbol": None, "fitted": None, "description": f"failed: {exc}",
+                    "verdict": f"failed: {type(exc).__name__}", "correct": False, "alone": False, "borderline": False,
+                    "located": None, "improvement": 0.0, "leftover": [], "t_sim": 0.0, "t_diag": 0.0}
 
 
 def _one_in(job, directory):
-    name, seed, level = job
+    name, seed, level, excitation = (*job, "sequences")[:4]
     from identification.diagnosis import DiagnosisSettings, diagnose_log
-    from open_world.generator import make_spec, simulate
+    from open_world.generator import Multisine, combine, make_spec, simulate
 
-    spec = make_spec(name, seed, level)
+    parts = [make_spec(n, seed, level) for n in name.split("+")]
+    spec = parts[0] if len(parts) == 1 else combine(parts)
     path = os.path.join(directory, f"{name}_{seed}_{level}.mcap")
     t0 = time.perf_counter()
     try:
-        simulate(path, spec, seed)
+        simulate(path, spec, seed, excitation=Multisine.draw(spec.params, seed, duration=12.2)
+                 if excitation == "multisine" else None)
     except RuntimeError as exc:             # the servo cannot hold this plant
         return {"case": name, "seed": seed, "level": level, "expect": spec.expect, "magnitude": spec.magnitude,
                 "description": f"simulation failed: {exc}", "verdict": "simulation failed", "correct": False,
+                "alone": False, "excitation": excitation, "borderline": False,
                 "t_sim": 0.0, "t_diag": 0.0}
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
-    diag = diagnose_log(path, model=spec.model, settings=DiagnosisSettings(max_steps=1, resimulate=False))
+    # one forward step per hidden effect (two for a pair); out of vocabulary: one
+    diag = diagnose_log(path, model=spec.model, settings=DiagnosisSettings(max_steps=len(parts), resimulate=False))
     t_diag = time.perf_counter() - t0
     os.unlink(path)
     names = _names(diag.verdict)
@@ -85,9 +112,10 @@ def _one_in(job, directory):
     where = (f.joints or f.cables) if f is not None else None
     truth_where = [j + 1 for j in spec.joints] or [c + 1 for c in spec.cables] or None
     lo = diag.leftover
-    return {"case": name, "seed": seed, "level": level, "expect": spec.expect, "magnitude": spec.magnitude,
-            "symbol": spec.symbol, "fitted": fitted, "description": spec.description, "verdict": "+".join(names),
-            "correct": correct(spec.expect, names),
+    return {"case": name, "seed": seed, "level": level, "excitation": excitation, "expect": spec.expect,
+            "magnitude": spec.magnitude, "symbol": spec.symbol, "fitted": fitted, "description": spec.description,
+            "verdict": "+".join(names), "correct": correct(spec.expect, names), "alone": alone(spec.expect, names),
+            "borderline": diag.borderline,
             "located": (where == truth_where) if (f is not None and truth_where) else None,
             "improvement": f.evidence.improvement if f else
             max((c.improvement for c in diag.steps[0].candidates), default=0.0),
@@ -99,11 +127,12 @@ def limit_table(results, levels) -> str:
     from open_world.generator import UNEXPLAINED
 
     lines = ["| hidden effect (generator's mechanism) | detection limit (level) | magnitudes at the limit | "
-             "correct / runs per level | located | median magnitude error |", "|---|---|---|---|---|---|"]
+             "correct / runs per level | named alone (all levels) | located | median magnitude error |",
+             "|---|---|---|---|---|---|---|"]
     cases = [c for c in dict.fromkeys(r["case"] for r in results) if c != "none"]
     for case in cases:
         rs_case = [r for r in results if r["case"] == case]
-        if rs_case[0]["expect"] == UNEXPLAINED:
+        if rs_case[0]["expect"] == UNEXPLAINED or "+" in case:
             continue
         per_level = {}
         for L in levels:
@@ -123,8 +152,29 @@ def limit_table(results, levels) -> str:
         lines.append(f"| {case} ({desc}) | {limit if limit is not None else '> ' + format(max(levels), 'g')} | "
                      + (f"{mags[0]:.3g}..{mags[-1]:.3g}" if mags else "-") + " | "
                      + ", ".join(f"{L:g}: {per_level[L][0]}/{per_level[L][1]}" for L in levels if per_level[L][1])
+                     + f" | {sum(r.get('alone', False) for r in rs_case)}/{len(rs_case)}"
                      + f" | {f'{sum(loc)}/{len(loc)}' if loc else '-'} | "
                      + (f"{100 * np.median(err):.1f} % (max {100 * max(err):.1f} %)" if err else "-") + " |")
+    return "\n".join(lines)
+
+
+def pairs_table(results) -> str:
+    """Two effects hidden at once: verdict counts, both named, exactly both."""
+    lines = ["| hidden effects | level | verdicts (count) | both named | exactly both |", "|---|---|---|---|---|"]
+    for case in dict.fromkeys(r["case"] for r in results if "+" in r["case"]):
+        for L in sorted({r["level"] for r in results if r["case"] == case}):
+            rs = [r for r in results if r["case"] == case and r["level"] == L]
+            counts = {}
+            for r in rs:
+                counts[r["verdict"]] = counts.get(r["verdict"], 0) + 1
+            lines.append(f"| {rs[0]['description']} | {L:g} | "
+                         + ", ".join(f"`{v}` x {k}" for v, k in sorted(counts.items(), key=lambda kv: -kv[1]))
+                         + f" | {sum(r['correct'] for r in rs)}/{len(rs)} | {sum(r['alone'] for r in rs)}/{len(rs)} |")
+    pr = [r for r in results if "+" in r["case"]]
+    if pr:
+        lines.append(f"\nBoth named in {sum(r['correct'] for r in pr)}/{len(pr)} logs "
+                     f"({100 * np.mean([r['correct'] for r in pr]):.0f} %), exactly both in "
+                     f"{sum(r['alone'] for r in pr)}/{len(pr)}.")
     return "\n".join(lines)
 
 
@@ -144,24 +194,73 @@ def out_of_vocabulary_table(results) -> str:
     return "\n".join(lines)
 
 
-def report(results, how: str) -> None:
-    levels = sorted({r["level"] for r in results if r["case"] != "none"})
-    seeds = sorted({r["seed"] for r in results if r["case"] != "none"})
-    neg = [r for r in results if r["case"] == "none"]
-    diag_t = [r["t_diag"] for r in results if r["t_diag"]]
-    print(f"# Detection power of the diagnosis\n\n{len(results)} blind logs (12.2 s each) from "
-          f"tests/open_world/generator.py, seeds {seeds}, levels {levels}; {how}; diagnosis "
-          f"{np.mean(diag_t) if diag_t else 0:.1f} s per log on average.\n")
-    print("**Effects of the vocabulary** (correct: the verdict's first name)\n")
-    print(limit_table(results, levels))
-    print("\n**Effects outside the vocabulary** (correct: `unexplained` in the verdict)\n")
-    print(out_of_vocabulary_table(results))
-    fa = [r for r in neg if r["verdict"] != "none"]
-    if neg:
-        print(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
-              + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}"
-                 if fa else "")
-              + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.")
+def report(results, how: str) -> str:
+    """The Markdown tables of one run (every excitation in turn)."""
+    out = []
+    for excitation in dict.fromkeys(r.get("excitation", "sequences") for r in results):
+        rx = [r for r in results if r.get("excitation", "sequences") == excitation]
+        levels = sorted({r["level"] for r in rx if r["case"] != "none"})
+        seeds = sorted({r["seed"] for r in rx if r["case"] != "none"})
+        neg = [r for r in rx if r["case"] == "none"]
+        diag_t = [r["t_diag"] for r in rx if r["t_diag"]]
+        what = ("the §5.2.2 sequences of the generator" if excitation == "sequences"
+                else "a random multisine in joint space (an excitation the tool did not design)")
+        out.append(f"### Excitation: {what}\n\n{len(rx)} blind logs (12.2 s each) from "
+                   f"tests/open_world/generator.py, seeds {seeds}, levels {levels}; {how}; diagnosis "
+                   f"{np.mean(diag_t) if diag_t else 0:.1f} s per log on average.\n")
+        single = [r for r in rx if "+" not in r["case"]]
+        ins = [r for r in single if r["case"] != "none" and r["expect"] != "unexplained"]
+        if ins:
+            out.append("**Effects of the vocabulary** (correct: the verdict's first name; named alone: the verdict "
+                       "is that name and nothing else)\n")
+            out.append(limit_table(rx, levels))
+            out.append(f"\nNamed alone in {sum(r['alone'] for r in ins)}/{len(ins)} logs "
+                       f"({100 * np.mean([r['alone'] for r in ins]):.0f} %); first name right in "
+                       f"{sum(r['correct'] for r in ins)}/{len(ins)}; borderline verdicts "
+                       f"{sum(r.get('borderline', False) for r in ins)}.")
+        if any("+" in r["case"] for r in rx):
+            out.append("\n**Two effects hidden at once** (two forward steps)\n")
+            out.append(pairs_table(rx))
+        if any(r["expect"] == "unexplained" for r in rx):
+            out.append("\n**Effects outside the vocabulary** (correct: `unexplained` in the verdict)\n")
+            out.append(out_of_vocabulary_table(rx))
+        fa = [r for r in neg if r["verdict"] not in ("none", "insufficient_excitation")]
+        if neg:
+            out.append(f"\n**Noise-only controls**: {len(neg) - len(fa)}/{len(neg)} give `none`"
+                       + (f"; false alarms: {', '.join(r['verdict'] + ' (seed ' + str(r['seed']) + ')' for r in fa)}"
+                          if fa else "")
+                       + f"; largest candidate improvement {100 * max(r['improvement'] for r in neg):.1f} %.\n")
+    return "\n".join(out)
+
+
+def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None) -> None:
+    """Put the tables between the markers ``<!-- name: begin -->`` and ``<!-- name: end -->`` of
+    ``path`` (atomic), with the commit measured (``commit``: the one a ``--from-jsonl`` run's
+    results were measured on; default the checkout's HEAD)."""
+    BEGIN, END = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
+    import subprocess
+
+    from neck_sim.atomic import atomic_write_bytes
+
+    root = os.path.dirname(os.path.abspath(path))
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        head, dirty = "unknown", ""
+    if commit is not None:                 # results of an earlier run: its commit, not the checkout's state
+        head, dirty = commit, ""
+    block = (f"{BEGIN}\n<!-- written by benchmarks/{name}.py; do not edit by hand -->\n\n"
+             f"Measured on commit `{head}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
+             f"{text}\n{END}")
+    with open(path) as fh:
+        old = fh.read()
+    if BEGIN not in old or END not in old:
+        raise SystemExit(f"--docs {path}: no {BEGIN} ... {END} markers")
+    new = old[:old.index(BEGIN)] + block + old[old.index(END) + len(END):]
+    atomic_write_bytes(path, new.encode())
 
 
 def timing(progress: bool = True) -> str:
@@ -259,6 +358,12 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--from-jsonl", default=None, help="print the tables of a previous --jsonl run (no simulation)")
     ap.add_argument("--timing-only", action="store_true", help="only the 60 s timing")
+    ap.add_argument("--pairs", default="", help="comma-separated pairs a+b hidden at once (or 'default': "
+                    "open_world.generator.PAIRS)")
+    ap.add_argument("--excitations", default="sequences", help="sequences,multisine")
+    ap.add_argument("--multisine-cases", default=None, help="cases run on the multisine (default: --cases)")
+    ap.add_argument("--docs", default=None, help="write the tables into this Markdown file between its markers")
+    ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
     args = ap.parse_args(argv)
     if args.timing_only:
         print(timing())
@@ -267,7 +372,11 @@ def main(argv=None) -> int:
     if args.from_jsonl:
         with open(args.from_jsonl) as fh:
             results = [json.loads(line) for line in fh if line.strip()]
-        report(results, "from " + args.from_jsonl)
+        text = report(results, "from " + args.from_jsonl)
+        print(text)
+        if args.docs:
+            write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
+                       commit=args.commit)
         return 0
     from controllers.campaign import ExecutorSpec, run_campaign
 
@@ -275,16 +384,26 @@ def main(argv=None) -> int:
     levels = sorted(float(x) for x in args.levels.split(","))
     cases = [c for c in (args.cases.split(",") if args.cases else CASES) if c != "none"]
     where = ExecutorSpec(workers=args.workers, cluster=args.cluster)
-    jobs = [("none", s, 1.0) for s in range(1, args.negatives + 1)]
-    jobs += [(c, s, L) for L in sorted(levels, reverse=True) for c in cases for s in seeds]
+    from open_world.generator import PAIRS
+
+    pairs = list(PAIRS) if args.pairs == "default" else [x for x in args.pairs.split(",") if x]
+    jobs = []
+    for excitation in args.excitations.split(","):
+        on = cases if excitation == "sequences" or not args.multisine_cases else args.multisine_cases.split(",")
+        jobs += [("none", s, 1.0, excitation) for s in range(1, args.negatives + 1)]
+        jobs += [(c, s, L, excitation) for L in sorted(levels, reverse=True) for c in on for s in seeds]
+        jobs += [(c, s, 1.0, excitation) for c in pairs for s in seeds]
     t0 = time.perf_counter()
-    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g}" for c, s, L in jobs],
+    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g} {e}" for c, s, L, e in jobs],
                            desc="blind diagnoses")
     wall = time.perf_counter() - t0
     if args.jsonl:
         with open(args.jsonl, "a") as fh:
             fh.writelines(json.dumps(r) + "\n" for r in results)
-    report(results, f"{wall:.0f} s on {where.describe()}")
+    text = report(results, f"{wall:.0f} s on {where.describe()}")
+    print(text)
+    if args.docs:
+        write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]))
     if not args.skip_timing:
         print(timing())
         print(story())

@@ -332,8 +332,8 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     alive = np.ones(K, dtype=bool)
     # Plants step together in one PlantBatch; anything else with the plant's interface (a wrapped
     # plant, a stand-in) steps alone through its own step().
-    batched = [i for i, p in enumerate(plants) if type(p) is Plant]
-    alone = [i for i in range(K) if type(plants[i]) is not Plant]
+    batched = [i for i, p in enumerate(plants) if type(p) is Plant and not p.steps_alone]
+    alone = [i for i in range(K) if i not in batched]
     rows = slice(None) if not alone else np.array(batched, dtype=np.intp)
     batch = PlantBatch([plants[i] for i in batched]) if batched else None
     start = None if batch is None else batch.k.copy()

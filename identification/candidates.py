@@ -65,7 +65,7 @@ from identification.least_squares import solve_weighted
 from identification.measured import MeasuredData
 
 __all__ = ["effect_names", "grid_of", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
-           "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "EFFECTS", "REQUIRES",
+           "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "elongation_offsets", "EFFECTS", "REQUIRES",
            "SHAPE_GRIDS", "PAPER_MODEL"]
 
 
@@ -265,6 +265,17 @@ def pretension_offsets(model: "ModelSpec", n_cables: int) -> np.ndarray:
     return out
 
 
+def elongation_offsets(model: "ModelSpec", data: MeasuredData) -> np.ndarray:
+    """(S, C) or (C,) m the model's terms add to the measured elongations: the rest elongations
+    (:func:`pretension_offsets`) and the offsets that follow the motion (a dead band)."""
+    out = pretension_offsets(model, data.C)
+    for t in model.terms:
+        series = t.effect.fit_elongation_series(data, dict(t.shape))
+        if series is not None:
+            out = out + series
+    return out
+
+
 def initial_state(data: MeasuredData) -> FitState:
     """Before any fit: tension = y_C (no friction), the nominal cable stiffness for the weights."""
     y_fast, y_slow = data.observations(0.0)
@@ -292,10 +303,14 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     delay = float(sum(t.effect.fit_delay(dict(t.shape)) for t in model.terms))
     data = data.camera_shifted(sum(t.effect.fit_camera_shift(dict(t.shape)) for t in model.terms))
     y_fast, y_slow = data.observations(delay)
+    for term in model.terms:
+        offset = term.effect.fit_force_offset(data, dict(term.shape))
+        if offset is not None:
+            y_fast, y_slow = y_fast + offset[0], y_slow + offset[1]
     yT = data.torque_observation(y_slow)
     elastic = model.elastic
     taut = data.taut
-    x = data.x + pretension_offsets(model, C)
+    x = data.x + elongation_offsets(model, data)
     iters = iterations if (elastic or any(t.effect.uses_tension for t in model.terms)) else 1
     t_fast, t_slow = state.tension_fast, state.tension
     k_hat = np.maximum(np.asarray(state.k, dtype=float), 1.0)

@@ -60,8 +60,12 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
 
 def format_summary(diag) -> str:
     """A few lines for the terminal: verdict, findings and their gains."""
-    lines = [f"diagnosis of {diag.source or 'data'} from the model: {diag.baseline.description}",
-             f"verdict: {diag.verdict}"]
+    model = diag.baseline.description if diag.baseline is not None else diag.model.describe()
+    lines = [f"diagnosis of {diag.source or 'data'} from the model: {model}",
+             f"verdict: {diag.verdict}" + (" (borderline: " + margin_text(diag) + ")" if diag.borderline else "")]
+    if diag.gaps:
+        lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else ":"))
+        lines += [f"      {g.describe()}" for g in diag.gaps]
     for f in diag.findings:
         ev = f.evidence
         where = f" on {_where(f)}" if _where(f) else ""
@@ -76,6 +80,8 @@ def format_summary(diag) -> str:
             bs = "-" if b is None else ", ".join(f"{scale * x:.3g}" for x in b)
             as_ = "-" if a is None else ", ".join(f"{scale * x:.3g}" for x in a)
             lines.append(f"      {label} RMS ({unit}): [{bs}] -> [{as_}]")
+    if diag.baseline is None:          # nothing was fitted: the gaps above say why
+        return "\n".join(lines + [f"  note: {n}" for n in diag.notes])
     b, a = diag.baseline.alpha_hat_vs_camera, diag.final.alpha_hat_vs_camera
     if b and a:
         lines.append(f"  alpha_hat vs camera, held out, mean |error|: {b.holdout.mean_abs_deg:.2f} deg -> "
@@ -92,6 +98,19 @@ def format_summary(diag) -> str:
     lines += [f"  note: {n}" for n in diag.notes]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
+
+
+def margin_text(diag) -> str:
+    """The verdict's decisions nearest their thresholds, in borderline bands (see
+    :meth:`~identification.diagnosis.Diagnosis.margins`)."""
+    out = []
+    for key, m in diag.margins().items():
+        v = m.get("margin_in_bands")
+        if v is None or not np.isfinite(v):
+            continue
+        what = m.get("candidate") or f"{m.get('channel')} vs {m.get('feature')}"
+        out.append(f"{key.replace('_', ' ')}: {what} {v:+.2f} bands")
+    return "; ".join(out)
 
 
 def _vec(v) -> str:
@@ -339,13 +358,20 @@ def _markdown(diag, figures: dict) -> str:
     L = [f"# Diagnosis of `{os.path.basename(diag.source) or 'data'}`", "",
          f"Baseline model: **{diag.baseline.description}**.", "",
          f"## Verdict: `{diag.verdict}`", ""]
+    L += [("**Borderline**: " if diag.borderline else "Margins to the decision thresholds: ")
+          + (margin_text(diag) or "-") + " (in borderline bands of "
+          f"{diag.settings.borderline:g} relative / {diag.settings.borderline_decades:g} decades of p; within 1 band "
+          "is borderline).", ""]
+    if diag.gaps:
+        L += ["### What this log cannot separate" + (" (no verdict)" if diag.insufficient else ""), ""]
+        L += [f"* {g.describe()}" for g in diag.gaps] + [""]
     if diag.findings:
-        L += ["| step | effect | where | parameters | held-out improvement | p (Wilcoxon, held out) | p (F, train) |",
-              "|---|---|---|---|---|---|---|"]
+        L += ["| step | effect | where | parameters | held-out improvement | p (Wilcoxon, held out) | p (F, train) | "
+              "margin (bands) |", "|---|---|---|---|---|---|---|---|"]
         for f in diag.findings:
             ev = f.evidence
             L.append(f"| {f.step} | {f.effect} | {_where(f) or 'all'} | {_param_text(f.parameters)} | "
-                     f"{100 * ev.improvement:.1f} % | {ev.p_holdout:.2g} | {ev.p_train:.2g} |")
+                     f"{100 * ev.improvement:.1f} % | {ev.p_holdout:.2g} | {ev.p_train:.2g} | {ev.margin:+.2f} |")
         L.append("")
     else:
         L += ["No candidate effect improves the held-out prediction significantly: the model explains the data "
@@ -429,6 +455,12 @@ def write_report(diag, directory) -> list[str]:
 
     directory = os.fspath(directory)
     os.makedirs(directory, exist_ok=True)
+    if diag.baseline is None:          # nothing fitted (too short or too still): the verdict and its reasons
+        md = os.path.join(directory, "report.md")
+        text = [f"# Diagnosis of `{os.path.basename(diag.source) or 'data'}`", "", f"## Verdict: `{diag.verdict}`", "",
+                "### What this log cannot separate (no verdict)", ""] + [f"* {g.describe()}" for g in diag.gaps]
+        atomic_write_bytes(md, ("\n".join(text + [""] + [f"Note: {n}" for n in diag.notes]) + "\n").encode())
+        return [md]
     figs = {"torque": _residual_figure(diag, os.path.join(directory, "residuals_torque.png"), "torque"),
             "cable": _residual_figure(diag, os.path.join(directory, "residuals_cable.png"), "cable"),
             "candidates": _candidates_figure(diag, os.path.join(directory, "candidates.png")),

@@ -63,6 +63,7 @@ from neck_sim.analytic.cables import motor_angles_rigid
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, motor_friction
 from neck_sim import native
 from neck_sim.effects import Effects
+from neck_sim.effects.backlash import lead_step
 from neck_sim.jit import kernel
 from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
@@ -308,6 +309,11 @@ class Plant:
         mujoco.mj_tendon(self.model, self.data)
         self._rest = self.data.ten_length[ix.cable_tendon].copy()
         self._x_pre = self.effects.elongation_offset(m)
+        # a dead band between motor (encoder) and drum: the motor's lead over the drum, rad
+        band = self.effects.encoder_band(m) * self._ratio
+        self._band = band if np.any(band > 0) else None
+        self._lead = np.zeros(m)
+        self._drum = np.zeros(m)
         self._motor_effects = self.effects.motor_effects()
         self._c = self._make_struct(tp)
         self._out_tension = np.ctypeslib.as_array(self._c.tension)[:m]
@@ -474,6 +480,8 @@ class Plant:
             mujoco.mj_step1(m, d)
         finally:
             _DISPATCH.leave(previous)
+        self._lead = np.zeros(self._n1)                   # encoders zeroed in the middle of the band
+        self._drum = self._out_theta.copy()
 
     def _check_forces(self, forces) -> list:
         """Commanded forces as a list of floats clipped to [0, f_max]; bad input raises ValueError."""
@@ -503,6 +511,9 @@ class Plant:
         solo.forces[0] = self._check_forces(forces)
         if solo.step_checked():
             raise solo.diverged(0)
+        if self._band is not None:
+            self._lead = lead_step(self._lead, self._out_theta - self._drum, self._band)
+            self._drum = self._out_theta.copy()
 
     def _camera_step(self, k: int) -> int:
         """Sub-step index at whose end camera frame k (due at k / camera_rate_hz) is taken."""
@@ -520,8 +531,16 @@ class Plant:
         return out
 
     def encoders(self) -> np.ndarray:
-        """Motor angles theta (m,) rad, quantised to the encoder resolution (nearest count)."""
-        return _quantise(self._out_theta, self._inv_res, self._res, np.empty(self._n1))
+        """Motor angles theta (m,) rad, quantised to the encoder resolution (nearest count); with a
+        dead band (``backlash``) the motor leads the drum the cable winds on."""
+        theta = self._out_theta if self._band is None else self._out_theta + self._lead
+        return _quantise(theta, self._inv_res, self._res, np.empty(self._n1))
+
+    @property
+    def steps_alone(self) -> bool:
+        """This plant must step through its own :meth:`step` (a dead band keeps state between
+        periods that the compiled batch does not)."""
+        return self._band is not None
 
     def camera_frame(self):
         """(t, alpha (N,)) of the camera frame taken during the last step (30 Hz, Gaussian noise

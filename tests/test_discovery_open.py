@@ -99,3 +99,18 @@ def test_generator_shares_no_code_with_the_candidates():
     forbidden = ("neck_sim.effects", "identification.candidates", "identification.diagnosis", "identification.blind")
     assert imported and not [m for m in imported if m.startswith(forbidden)], imported
     assert os.path.basename(gen.__file__) == "generator.py"
+
+
+@pytest.mark.parametrize("seed", (1, 2))
+def test_backlash_is_named_on_its_cable_never_as_an_actuation_delay(tmp_path, seed):
+    """Gear backlash hidden by the generator's own formula (a smooth play between encoder and
+    drum) on a right cable at 2 x its test band (0.48-0.75 mm of cable): ``backlash`` is the first
+    name, on that cable, never an actuation delay alone; its band within 40 % (the generator's
+    smooth swing against the candidate's clipped play)."""
+    spec = make_spec("backlash", seed, level=2.0)
+    diag = diagnose_log(simulate(tmp_path / "backlash.mcap", spec, seed), model=spec.model, settings=FAST)
+    names = _names(diag.verdict)
+    assert names[0] == "backlash" and names != ["actuation_delay"], (spec.description, diag.verdict)
+    f = diag.findings[0]
+    assert f.cables == [c + 1 for c in spec.cables], spec.description
+    assert f.parameters[spec.symbol].value == pytest.approx(spec.magnitude, rel=0.4), spec.description

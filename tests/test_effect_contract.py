@@ -170,7 +170,7 @@ def test_fitted_values_to_plant_give_the_columns_forces(cls, neck, rng):
 def test_shifting_effects_reach_the_plant_as_fitted(rng):
     """Effects without columns: the rest elongations and the delay the fit uses are the plant's."""
     shifting = [c for c in EFFECTS if not c.columns]
-    assert {c.kind for c in shifting} >= {"elongation", "command", "camera"}
+    assert {c.kind for c in shifting} >= {"elongation", "command", "camera", "encoder"}
     for cls in shifting:
         shape = _shape(cls, rng)
         params, eff = cls.to_plant(default_params(3), {}, shape)
@@ -178,7 +178,46 @@ def test_shifting_effects_reach_the_plant_as_fitted(rng):
         np.testing.assert_array_equal(eff.elongation_offset(4), cls.fit_elongation_offset(shape, 4))
         assert eff.command_delay == cls.fit_delay(shape)
         assert eff.camera_delay == cls.fit_camera_shift(shape)
-        assert np.any(eff.elongation_offset(4) != 0) or eff.command_delay > 0 or eff.camera_delay > 0
+        band = eff.encoder_band(4)
+        if cls.kind == "encoder":      # the fit's per-cable band is the plant's (shape key <name>_2)
+            sh = next(s for s in cls.shapes if s.per_cable)
+            assert band[1] == shape[f"{sh.name}_2"] and np.count_nonzero(band) == 1
+        assert np.any(eff.elongation_offset(4) != 0) or eff.command_delay > 0 or eff.camera_delay > 0 or np.any(band > 0)
+
+
+ENCODER = [c for c in EFFECTS if c.kind == "encoder"]
+
+
+@pytest.mark.parametrize("cls", ENCODER, ids=ids(ENCODER))
+def test_encoder_effects_offset_the_elongation_the_plant_has(cls, rng):
+    """A dead band in the plant (from ``to_plant``) against the fit's offset of the elongation:
+    the encoders the plant reports minus its true motor-slide (drum) positions, in m of cable, is
+    the lead the fit computes from those encoders (``fit_cable_offset`` is minus it), to within the
+    plant's finite swing across the band (the drum moves 1/SWING of the band meanwhile)."""
+    from neck_sim.effects.backlash import SWING, motor_lead
+
+    p = default_params(3)
+    sh = next(s for s in cls.shapes if s.per_cable)
+    band = 0.5e-3
+    _, eff = cls.to_plant(p, {}, {f"{sh.name}_2": band})
+    plant = P.Plant(p, effects=E.Effects.of(eff), seed=0)
+    plant.reset()
+    ratio = p.actuation.R / p.actuation.r_d
+    f0 = plant.truth().tension.copy() + 5.0
+    enc, drum = [], []
+    for k in range(1500):          # 3 s: cable 2 wound, unwound, wound again by a force swing
+        f = f0.copy()
+        f[1] += 12.0 * np.sin(2 * np.pi * k / 500.0)
+        plant.step(f)
+        enc.append(plant.encoders())
+        drum.append(plant._out_theta.copy())
+    enc, drum = np.array(enc) / ratio, np.array(drum) / ratio                # m of cable
+    lead = enc - drum
+    quant = (2 * np.pi / p.sensors.encoder_counts_per_turn) / ratio          # one encoder count, m
+    assert np.abs(lead[:, [0, 2, 3]]).max() <= 0.5 * quant                   # no band: quantisation only
+    assert np.abs(lead[:, 1]).max() <= band / 2 + quant and np.ptp(lead[:, 1]) > 0.95 * band   # it swings across
+    fitted = motor_lead(enc[:, 1:2], band)[:, 0]
+    assert np.abs(fitted - lead[:, 1]).max() <= band / SWING + 2 * quant
 
 
 @pytest.mark.parametrize("cls", EFFECTS, ids=ids(EFFECTS))
@@ -201,8 +240,8 @@ def test_names_units_and_json(cls):
 @pytest.mark.parametrize("cls", [c for c in EFFECTS if c.shapes], ids=ids([c for c in EFFECTS if c.shapes]))
 def test_default_shape_lies_inside_its_grid(cls):
     for sh in cls.shapes:
-        if sh.per_cable:
-            assert sh.default is None and sh.bounds[0] < 0 < sh.bounds[1]
+        if sh.per_cable:          # the search range holds "absent" (0)
+            assert sh.default is None and sh.bounds[0] <= 0 < sh.bounds[1]
         else:
             assert sh.grid and min(sh.grid) <= sh.default <= max(sh.grid), sh
             assert list(sh.grid) == sorted(set(sh.grid))

@@ -93,11 +93,11 @@ def test_registry_refuses_bad_effects(registered):
     with pytest.raises(ValueError, match="exists"):
         E.register(type("Other", (CableBias,), {"name": "dry_friction"}))
     with pytest.raises(ValueError, match="requires unregistered"):
-        E.register(type("Needy", (CableBias,), {"name": "needy", "requires": ("backlash",)}))
+        E.register(type("Needy", (CableBias,), {"name": "needy", "requires": ("gear_creep",)}))
     with pytest.raises(ValueError, match="built-in"):
         E.unregister("payload")
-    with pytest.raises(ValueError, match="unknown effect 'backlash'"):
-        E.Effects(backlash=CableBias())
+    with pytest.raises(ValueError, match="unknown effect 'gear_creep'"):
+        E.Effects(gear_creep=CableBias())
 
 
 def _leader(verdict) -> str:

@@ -10,7 +10,7 @@ import numpy as np
 from identification.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import search_shape, shape_grid
-from identification.diagnosis.statistics import block_scores, score
+from identification.diagnosis.statistics import block_scores, in_band, score
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +30,9 @@ class CandidateScore:
     valid: bool                   # physical sign of the fitted magnitudes
     significant: bool
     note: str = ""
+    margins: dict = None           # distance to each threshold (statistics.Comparison.margins)
+    margin: float = float("nan")   # the decision's margin in borderline bands (statistics.in_band)
+    alpha: float = float("nan")    # the level its p values are held to (alpha / candidates of the step)
 
     @property
     def fit(self) -> Fit | None:
@@ -44,7 +47,14 @@ class CandidateScore:
                 "primary_holdout_improvement": self.holdout_improvement,
                 "holdout_ratio_by_block": self.block_ratio, "p_holdout_wilcoxon": self.p_holdout,
                 "p_train_F": self.p_train, "added_parameters": self.added_params, "physical_sign": self.valid,
-                "significant": self.significant, "shape": dict(self.term.shape), "note": self.note}
+                "significant": self.significant, "shape": dict(self.term.shape), "note": self.note,
+                "alpha": self.alpha, "margins": self.margins or {}, "margin_in_bands": self.margin,
+                "borderline": self.borderline}
+
+    @property
+    def borderline(self) -> bool:
+        """Within one borderline band of its decision (either side)."""
+        return bool(abs(self.margin) < 1.0)
 
 
 def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
@@ -75,7 +85,8 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     best = search_shape(ctx, name, trial)
     if best is None:
         return CandidateScore(Term(name, shape_grid(name)[0]), None, 0, math.nan, math.nan, 0.0, 0.0, {}, 1.0, 1.0,
-                              False, False, "not identifiable: " + (notes[0] if notes else "no fit"))
+                              False, False, "not identifiable: " + (notes[0] if notes else "no fit"),
+                              {}, -math.inf, ctx.alpha_candidate)
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
@@ -85,7 +96,11 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
     valid, why = sign_ok(fit, term)
+    margins = ctx.candidate_margins(cmp)
+    s = ctx.settings
     return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales, ctx.data.n), cmp.improvement,
                           cmp.holdout_improvement, ratio, cmp.p_holdout, cmp.p_train, valid,
-                          valid and ctx.significant(cmp), why)
+                          valid and ctx.candidate_significant(cmp), why, margins,
+                          in_band(margins, s.borderline, s.borderline_decades) if valid else -np.inf,
+                          ctx.alpha_candidate)
 

@@ -26,8 +26,12 @@ class StepContext:
     """Everything one step of the search shares: data, split, scales, the step's baseline."""
 
     def __init__(self, data: MeasuredData, split: Split, settings: DiagnosisSettings, base: Evaluated,
-                 scales: np.ndarray):
+                 scales: np.ndarray, family: int = 1):
         self.data, self.split, self.settings, self.base, self.scales = data, split, settings, base, scales
+        # the candidates of a step are ``family`` tests of one question ("is anything missing?"):
+        # each is held to alpha / family (Bonferroni), the step's false-alarm level stays alpha
+        self.family = max(int(family), 1)
+        self.alpha_candidate = settings.alpha / self.family
         # effective samples of the training folds, over every channel (the residuals are low-passed)
         n = effective_samples(int(split.train.sum()), data.prep.cutoffs["common"].hz, data.prep.rate_hz)
         self.n_eff = max(n * len(scales), 10)
@@ -65,8 +69,17 @@ class StepContext:
                              added, dof))
 
     def significant(self, comparison: Comparison, factor: float = 1.0) -> bool:
-        """The comparison passes this diagnosis' tests (``factor`` scales the minimum improvement)."""
+        """The comparison passes this diagnosis' tests at level alpha (one targeted test, as the
+        encompassing tests between two candidates; ``factor`` scales the minimum improvement)."""
         return comparison.significant(self.settings.alpha, factor * self.settings.min_improvement)
+
+    def candidate_significant(self, comparison: Comparison) -> bool:
+        """A candidate against the step's baseline: the tests at ``alpha / family``."""
+        return comparison.significant(self.alpha_candidate, self.settings.min_improvement)
+
+    def candidate_margins(self, comparison: Comparison) -> dict:
+        """The candidate's margins to the thresholds it is held to (:meth:`Comparison.margins`)."""
+        return comparison.margins(self.alpha_candidate, self.settings.min_improvement)
 
 
 def channel_scales(data: MeasuredData, res: np.ndarray, train: np.ndarray) -> np.ndarray:

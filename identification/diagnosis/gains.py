@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.candidates import Fit, MeasuredData, pretension_offsets
+from identification.candidates import Fit, MeasuredData, elongation_offsets
 from neck_sim.analytic.dynamics import cable_stiffness, static_elongation
 
 
@@ -50,13 +50,15 @@ def residual_rms(data: MeasuredData, fit: Fit, res: np.ndarray, mask: np.ndarray
 
 
 def model_elongation(data: MeasuredData, fit: Fit) -> np.ndarray:
-    """The model's elongation x_c (S, C) m from its tension estimate (eq 54 quasi-static, x_0 of
-    ``pretension`` subtracted: the encoders were zeroed with the cables already stretched)."""
+    """The model's elongation x_c (S, C) m as the encoders see it, from its tension estimate (eq 54
+    quasi-static) minus the offsets its terms add to the measured elongation (x_0 of
+    ``pretension``: the encoders were zeroed with the cables already stretched; a dead band's
+    lead)."""
     if not fit.model.elastic:
         return np.zeros((data.S, data.C))
     k = np.maximum(fit.group("k"), 1.0)
     lam = np.clip(fit.group("lambda"), 0.0, None) if fit.has("lambda") else np.zeros(data.C)
-    return static_elongation(fit.tension_hat, k, lam) - pretension_offsets(fit.model, data.C)
+    return static_elongation(fit.tension_hat, k, lam) - elongation_offsets(fit.model, data)
 
 
 @dataclass(frozen=True)

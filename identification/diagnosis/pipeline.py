@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from identification.candidates import MeasuredData, plant_model
-from identification.diagnosis.fitting import StepContext
+from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.gains import alpha_hat_errors, residual_rms
 from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, shape_located, term_parameters
 from identification.diagnosis.resimulation import resimulate
@@ -19,6 +19,7 @@ from identification.diagnosis.selection import run_step
 from identification.diagnosis.settings import DiagnosisSettings, parse_model
 from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import leftover_structure
+from identification.diagnosis.support import blocked_candidates, excitation_summary, log_gaps, short_log_gap
 from identification.preprocessing import Measurements
 from neck_sim.analytic import UnreachableError
 from neck_sim.params import NeckParams
@@ -49,6 +50,20 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     timings = {}
     notes: list[str] = []
     t0 = time.perf_counter()
+    summary = excitation_summary(data)
+    gaps = log_gaps(summary, data.n, s.support)
+    fatal = any(g.fatal for g in gaps)
+    blocked = {} if fatal else blocked_candidates(gaps, data.C, data.n)
+    if fatal:                  # the log cannot support a verdict: the baseline only, no candidate
+        s = dataclasses.replace(s, candidates=(), max_steps=1)
+        try:
+            fit_baseline(data, model, split_samples(data.t, data.activity, s), s, None)
+        except ValueError as exc:    # too little for even the baseline: the gaps say why, no model
+            return Diagnosis.without_fit(source, model, s, gaps, summary, notes=(f"baseline not fitted: {exc}",),
+                                         data=data)
+    elif blocked:
+        s = dataclasses.replace(s, candidates=tuple(c for c in s.candidates if c not in blocked))
+        notes += [f"{name} not tried: {why}" for name, why in blocked.items()]
     split = split_samples(data.t, data.activity, s)
     steps = []
     current, state = model, None
@@ -89,7 +104,8 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
                               residual_rms(data, ev.fit, ev.fit.residuals(), split.train),
                               alpha[i], resim.get(i), ev.cv) for i, ev in enumerate(evaluated)]
     t1 = time.perf_counter()
-    leftover = leftover_structure(data, fits[-1], evaluated[-1].cv, alpha[-1], s.structure)
+    leftover = None if fatal else leftover_structure(data, fits[-1], evaluated[-1].cv, alpha[-1], s.structure,
+                                                     named=any(st.chosen is not None for st in steps), band=s.borderline)
     timings["structure"] = time.perf_counter() - t1
     findings = []
     for i, st in enumerate(steps):
@@ -103,7 +119,7 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
                                 params, c,
                                 Gain(summaries[i], summaries[i + 1]), leftover.found))
     return Diagnosis(source, model, split, tuple(steps), tuple(findings), tuple(summaries),
-                     ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes))
+                     ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes), gaps, summary)
 
 
 def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, params: NeckParams | None = None,
@@ -116,6 +132,10 @@ def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, 
     s = settings or DiagnosisSettings()
     if not isinstance(log, Log):
         log = read_log(log, topics=("motors", "camera"), require=("motors", "camera"))
+    span = short_log_gap(log, s.support)
+    if span is not None:        # too short to filter: no verdict, and why
+        return Diagnosis.without_fit(os.fspath(log.path), parse_model(model), s, (span,), None,
+                                     notes=tuple(f"input: {w}" for w in log.warnings))
     t0 = time.perf_counter()
     with single_thread():
         data = MeasuredData(Measurements.from_log(log), params or log.params, s.preprocess)

@@ -15,7 +15,8 @@ from identification.diagnosis.resimulation import Resimulation
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis.structure import Leftover
-from neck_sim.effects import NONE, UNEXPLAINED
+from identification.diagnosis.support import ExcitationSummary
+from neck_sim.effects import INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED
 from neck_sim.atomic import atomic_write_json, jsonable
 from neck_sim.params import NeckParams, to_dict
 
@@ -136,9 +137,12 @@ def method_text(s: DiagnosisSettings) -> dict:
         "score": "S = per channel (N torque, m elongation) mean square residual / (primary baseline training "
                  "RMS)^2, averaged within each residual type, then over the two types",
         "significance": f"cross-validated improvement 1 - S_cand/S_base >= min_improvement ({s.min_improvement:g}), "
-                        f"one-sided Wilcoxon signed-rank test over {s.chunk_s:g} s chunks p < alpha ({s.alpha:g}), "
+                        f"one-sided Wilcoxon signed-rank test over {s.chunk_s:g} s chunks and "
                         "training F-test counting the added linear and searched shape parameters (one effective "
-                        "sample per 1/(2 f_c) s per channel) p < alpha, fitted magnitudes of physical sign",
+                        f"sample per 1/(2 f_c) s per channel) both p < alpha ({s.alpha:g}) / the candidates of the "
+                        "step (Bonferroni: the step's false-alarm level is alpha), fitted magnitudes of "
+                        f"physical sign; a decision within {s.borderline:g} (relative) or {s.borderline_decades:g} "
+                        "decades of p of a threshold is borderline",
         "look_alikes": "encompassing test between the leader and every other significant candidate: fitted "
                        "together, the one that adds nothing significant to the other (improvement >= "
                        f"{s.min_improvement / 2:g}, p < {s.alpha:g}) is dropped; if neither adds, the verdict lists "
@@ -160,51 +164,104 @@ class Diagnosis:
 
     source: str
     model: ModelSpec
-    split: Split
+    split: Split | None
     steps: tuple
     findings: tuple
     summaries: tuple
-    extended: ExtendedModel
+    extended: ExtendedModel | None
     timings: dict
     settings: DiagnosisSettings
     data: MeasuredData | None = None
     leftover: Leftover | None = None
     notes: tuple = ()
+    gaps: tuple = ()               # support.Gap: what the log cannot separate
+    excitation: ExcitationSummary | None = None
+
+    @classmethod
+    def without_fit(cls, source: str, model: ModelSpec, settings: DiagnosisSettings, gaps: tuple,
+                    excitation: ExcitationSummary | None, notes: tuple = (), data=None) -> "Diagnosis":
+        """The diagnosis of a log that cannot support even the baseline's fit (its fatal ``gaps``
+        say why): verdict ``insufficient_excitation``, no split, steps, models or findings."""
+        return cls(source, model, None, (), (), (), None, {}, settings, data, None, tuple(notes), tuple(gaps),
+                   excitation)
+
+    @property
+    def insufficient(self) -> bool:
+        """The log cannot support a verdict (a fatal gap)."""
+        return any(g.fatal for g in self.gaps)
 
     @property
     def verdict(self):
-        """The first step's verdict (an effect name, a list of names when ambiguous, or "none"),
-        with ``UNEXPLAINED`` when the final model leaves structure beyond noise: alone instead
-        of "none", appended to the names otherwise."""
-        v = self.steps[0].verdict if self.steps else NONE
-        if self.leftover is None or not self.leftover.significant:
-            return v
-        if v == NONE:
-            return UNEXPLAINED
-        return (list(v) if isinstance(v, list) else [v]) + [UNEXPLAINED]
+        """``insufficient_excitation`` when the log cannot support a verdict; else the names the
+        forward steps found (one name, or a list: several findings, or look-alikes the data
+        cannot tell apart), "none" when nothing was found, with ``UNEXPLAINED`` when the final
+        model leaves structure beyond noise: alone instead of "none", appended to the names
+        otherwise."""
+        if self.insufficient:
+            return INSUFFICIENT_EXCITATION
+        names = []
+        for st in self.steps:
+            if st.chosen is None:
+                break
+            for n in (st.verdict if isinstance(st.verdict, list) else [st.verdict]):
+                if n not in names:
+                    names.append(n)
+        if self.leftover is not None and self.leftover.significant:
+            names.append(UNEXPLAINED)
+        if not names:
+            return NONE
+        return names[0] if len(names) == 1 else names
+
+    def margins(self) -> dict:
+        """How far the verdict is from flipping, in borderline bands (> 1: clear): per step, the
+        candidate closest to its significance decision (either side: a named effect's weakest
+        test, a rejected one's largest shortfall; :func:`~identification.diagnosis.statistics.
+        in_band`), and the structure test's closest decision."""
+        out = {}
+        for i, st in enumerate(self.steps):
+            valid = [c for c in st.candidates if np.isfinite(c.margin)]
+            if valid:
+                c = min(valid, key=lambda c: abs(c.margin))
+                out[f"step_{i + 1}"] = {"candidate": c.term.name, "margin_in_bands": c.margin,
+                                        "named": c is st.chosen, "margins": c.margins}
+        if self.leftover is not None:
+            out["structure"] = self.leftover.margin_dict()
+        return out
 
     @property
-    def baseline(self) -> ModelSummary:
-        return self.summaries[0]
+    def borderline(self) -> bool:
+        """A decision of this verdict lies within one borderline band of its threshold."""
+        return any(abs(m.get("margin_in_bands", np.inf)) < 1.0 for m in self.margins().values())
 
     @property
-    def final(self) -> ModelSummary:
-        return self.summaries[-1]
+    def baseline(self) -> ModelSummary | None:
+        return self.summaries[0] if self.summaries else None
+
+    @property
+    def final(self) -> ModelSummary | None:
+        return self.summaries[-1] if self.summaries else None
 
     def to_dict(self) -> dict:
-        return jsonable({"verdict": self.verdict, "findings": [f.to_dict() for f in self.findings],
+        return jsonable({"verdict": self.verdict, "borderline": self.borderline, "margins": self.margins(),
+                         "gaps": [g.to_dict() for g in self.gaps],
+                         "excitation": None if self.excitation is None else self.excitation.to_dict(),
+                         "findings": [f.to_dict() for f in self.findings],
                          UNEXPLAINED: None if self.leftover is None else self.leftover.to_dict(),
                          "notes": list(self.notes),
-                         "baseline": self.baseline.to_dict(), "final": self.final.to_dict(),
-                         "extended_model": self.extended.to_dict(),
+                         "baseline": self.baseline and self.baseline.to_dict(),
+                         "final": self.final and self.final.to_dict(),
+                         "extended_model": self.extended and self.extended.to_dict(),
                          "steps": [s.to_dict(i) for i, s in enumerate(self.steps)],
-                         "split": self.split.to_dict(), "source": self.source, "timings_s": self.timings,
+                         "split": self.split and self.split.to_dict(), "source": self.source, "timings_s": self.timings,
                          "method": method_text(self.settings), "settings": self.settings.to_dict()})
 
     def write_json(self, path) -> None:
         atomic_write_json(path, self.to_dict())
 
     def write_model(self, path) -> None:
-        """The final model (terms, plant parameters, effects) as JSON; ``--model`` reads it back."""
+        """The final model (terms, plant parameters, effects) as JSON; ``--model`` reads it back.
+        ValueError when there is none (the log could not support the baseline's fit)."""
+        if self.extended is None:
+            raise ValueError("no model: the log is too short or too still for a fit (insufficient_excitation)")
         atomic_write_json(path, self.extended.to_dict())
 

@@ -68,14 +68,15 @@ def trial_score(entry) -> float:
     return math.inf if entry is None else entry[0]
 
 
-def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
-    """Training mean square elongation error of cable j's law alone (eq 54 with x + x0; k, lambda,
-    c_a refitted with the weights 1 / (k + lambda t) iterated, the base's motor forces fixed),
-    normalised by the cable's scale."""
+def _cable_law_score(ctx: StepContext, j: int, offset) -> float:
+    """Training mean square elongation error of cable j's law alone (eq 54 with x + offset, a
+    scalar or (S,) m; k, lambda, c_a refitted with the weights 1 / (k + lambda t) iterated, the
+    base's motor forces fixed), normalised by the cable's scale."""
     data, base = ctx.data, ctx.base.fit
     sel = data.taut[:, j] & ctx.split.train
     t = base.state.tension[sel, j]
-    x = data.x[sel, j] + x0
+    off = np.asarray(offset, dtype=float)
+    x = data.x[sel, j] + (off[sel] if off.ndim else off)
     cols = [x, data.x_dot[sel, j]]
     stiffening = base.has("lambda")              # the model's cable law has eq (54)'s lambda
     if stiffening:
@@ -92,15 +93,17 @@ def _cable_law_score(ctx: StepContext, j: int, x0: float) -> float:
 
 
 def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
-    """Per cable, the rest elongation x_0 (``shape``, keys ``<shape.name>_<i>``, of effect ``name``)
-    that best fits that cable's law (bounded search on ``shape.bounds`` on the training folds);
+    """Per cable, the shape value (``shape``, keys ``<shape.name>_<i>``, of effect ``name``: a rest
+    elongation x_0, a dead band) whose elongation offset (``fit_cable_offset``) best fits that
+    cable's law (bounded search on ``shape.bounds`` on the training folds);
     the term keeps the cables whose offset passes an F-test at 1 % on that cable's rows, else the
     best single cable."""
     data = ctx.data
+    offset = effect_registry.get(name).fit_cable_offset      # the trial offset of a shape value
     found = []
     for j in range(data.C):
-        x = minimise_bounded(lambda v, j=j: _cable_law_score(ctx, j, v), *shape.bounds, xatol=1e-7)
-        s0, s1 = _cable_law_score(ctx, j, 0.0), _cable_law_score(ctx, j, x)
+        x = minimise_bounded(lambda v, j=j: _cable_law_score(ctx, j, offset(data, j, v)), *shape.bounds, xatol=1e-7)
+        s0, s1 = _cable_law_score(ctx, j, 0.0), _cable_law_score(ctx, j, offset(data, j, x))
         n = max(effective_samples(int((data.taut[:, j] & ctx.split.train).sum()), data.prep.cutoffs["common"].hz,
                                   data.prep.rate_hz), 5)
         found.append((f_test_p(s0, s1, 1, n - 4), s1 / s0, j, round(x, 7)))

@@ -77,6 +77,13 @@ def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> Encompa
         head = ctx.compare(b.model, a.model, 0)
         wins = head.improvement >= 0.5 * ctx.settings.min_improvement and head.p_holdout < ctx.settings.alpha
         return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, wins, False)
+    half = 0.5 * ctx.settings.min_improvement
+    if b_to_a.improvement < 0 <= half <= a_to_b.improvement:
+        # B, with the shape it was searched with alone, makes A's held-out prediction worse: it
+        # adds nothing to A (its shape absorbed A's signal), while A improves on B
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, True, False)
+    if a_to_b.improvement < 0 <= half <= b_to_a.improvement:
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, False, True)
     # half the minimum improvement: the second effect only has to add to the first
     return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, ctx.significant(a_to_b, 0.5),
                             ctx.significant(b_to_a, 0.5))
@@ -113,10 +120,10 @@ def run_step(data: MeasuredData, model: ModelSpec, split: Split, settings: Diagn
     from tqdm.auto import tqdm
 
     fit, scales = fit_baseline(data, model, split, settings, state)
-    ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
-    ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales)
     names = [n for n in settings.candidates
              if not model.has(n) and all(model.has(r) for r in effect_registry.get(n).requires)]
+    ctx = StepContext(data, split, settings, Evaluated(fit, np.zeros((data.S, data.n + data.C))), scales)
+    ctx = StepContext(data, split, settings, Evaluated(fit, ctx.cross_validate(fit)), scales, family=len(names))
     cands = []
     for name in tqdm(names, desc=desc, unit="effect", disable=not progress, leave=False):
         cands.append(evaluate_candidate(ctx, name))

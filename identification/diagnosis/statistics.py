@@ -16,7 +16,8 @@ from identification.diagnosis.split import Split
 from neck_sim.effects.base import clearly_nonzero   # the one rule, beside the effects' sign checks
 
 __all__ = ["mean_square", "channel_weights", "score", "block_scores", "chunk_reductions", "wilcoxon_p", "improvement",
-           "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome"]
+           "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome", "margin_ratio",
+           "decades_below", "in_band"]
 
 
 def mean_square(res: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -102,6 +103,34 @@ class Comparison:
     def significant(self, alpha: float, min_improvement: float) -> bool:
         """Improves by at least ``min_improvement`` with both tests below ``alpha``."""
         return self.improvement >= min_improvement and self.p_holdout < alpha and self.p_train < alpha
+
+    def margins(self, alpha: float, min_improvement: float) -> dict:
+        """Distance of each test to its threshold, > 0 on the passing side: the improvement
+        relative to ``min_improvement`` (``improvement / min_improvement - 1``) and each p value
+        in decades below ``alpha`` (``log10(alpha / p)``)."""
+        return {"improvement": margin_ratio(self.improvement, min_improvement),
+                "p_holdout_decades": decades_below(self.p_holdout, alpha),
+                "p_train_decades": decades_below(self.p_train, alpha)}
+
+
+def margin_ratio(value: float, threshold: float) -> float:
+    """``value / threshold - 1``: the relative distance of a value that must reach ``threshold``
+    (> 0 passes)."""
+    return float(value / threshold - 1.0) if threshold > 0 else float("inf")
+
+
+def decades_below(p: float, alpha: float) -> float:
+    """``log10(alpha / p)``: how many decades a p value lies below its level (> 0 passes)."""
+    return float(np.log10(alpha / max(p, 1e-300)))
+
+
+def in_band(margins: dict, band: float, decades: float) -> float:
+    """The margins of one decision (see :meth:`Comparison.margins`; keys ending in ``_decades``
+    are in decades of p, the rest relative) in units of the borderline band: each divided by its
+    band (``band`` relative, ``decades`` for p values), the decision's margin the smallest.  > 0:
+    passes every test; |margin| < 1: borderline; for a failed decision, the largest shortfall."""
+    vals = [v / (decades if k.endswith("_decades") else band) for k, v in margins.items()]
+    return float(min(vals)) if vals else float("inf")
 
 
 def encompassing_outcome(a_adds: bool, b_adds: bool) -> str:

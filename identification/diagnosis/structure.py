@@ -6,7 +6,8 @@ m; alpha_hat against the camera j, deg):
 
 * **correlation with the state**: the correlation rho of the cross-validated residual with each
   state feature (motor speeds, their signs and accelerations; joint angles, speeds, their signs
-  and accelerations; tension and elongation estimates; time).  Noise is uncorrelated with the
+  and accelerations; tension estimates and motor angles; time), every feature but the joint
+  angle from the encoders (see :func:`state_features`).  Noise is uncorrelated with the
   state: under it, rho sqrt(n_eff) ~ N(0, 1) with n_eff the independent samples at the filter's
   bandwidth (one per 1 / (2 f_c) s).  Significant when |z| beats a Bonferroni bound over every
   (channel, feature) pair *and* |rho| >= ``min_rho`` (a model is never perfect: a tiny but
@@ -30,7 +31,7 @@ from identification.diagnosis.settings import StructureSettings
 from identification.diagnosis.statistics import effective_samples
 
 __all__ = ["StructureSettings", "Structure", "Leftover", "correlations", "lag_one", "bonferroni_z", "state_features",
-           "leftover_structure"]
+           "leftover_structure", "test_margin"]
 
 
 # ------------------------------------------------------------------------------ pure functions
@@ -89,13 +90,25 @@ def feature_unit(name: str) -> str:
 def state_features(data, tension: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
     """(names, (S, F)) the state features on the slow grid of ``data`` (a MeasuredData):
     motor speed, its sign and acceleration per cable; joint angle, speed, its sign and
-    acceleration per joint; tension (the model's eq 41 estimate) and elongation per cable; time."""
+    acceleration per joint; tension (the model's eq 41 estimate) and motor angle per cable; time.
+
+    Every feature but the joint angle comes from the encoders (joint speed by eq 35, its
+    acceleration the time derivative of that), not from the camera: the residuals carry the
+    camera's noise (the linkage torque through alpha_ddot, the elongation of eq 27 through alpha),
+    so a camera-derived feature correlates with them by its own noise (errors in variables:
+    rho = sd(noise) / sd(feature), 0.5-0.7 for the camera's alpha_ddot on slow moves), which is no
+    structure of the model.  The joint angle's noise (about 1 deg against ranges of tens of
+    degrees) leaves it a few hundredths."""
+    from neck_sim.effects.joint_friction import joint_speed_from_encoders
+
     p = data.prep
     C, n = data.C, data.n
+    alpha_dot = joint_speed_from_encoders(data.theta_dot, data.alpha, data.params)
+    alpha_ddot = np.gradient(alpha_dot, data.t, axis=0)
     groups = [("motor speed", data.theta_dot, C), ("sign of motor speed", _sign(data.theta_dot), C),
               ("motor acceleration", p.theta_ddot, C), ("joint angle", data.alpha, n),
-              ("joint speed", p.alpha_dot, n), ("sign of joint speed", _sign(p.alpha_dot), n),
-              ("joint acceleration", p.alpha_ddot, n), ("tension", tension, C), ("elongation", data.x, C)]
+              ("joint speed", alpha_dot, n), ("sign of joint speed", _sign(alpha_dot), n),
+              ("joint acceleration", alpha_ddot, n), ("tension", tension, C), ("motor angle", p.theta, C)]
     names, cols = [], []
     for what, arr, count in groups:
         for i in range(count):
@@ -144,6 +157,8 @@ class Leftover:
     n_tests: int
     settings: StructureSettings
     plot: tuple | None = field(default=None, repr=False)
+    closest: tuple = ()            # the tests nearest their decision: (margin in bands, Structure), largest first
+    min_rho: float = float("nan")  # the |rho| a structure needed here (min_rho, or min_rho_named beside a name)
 
     @property
     def significant(self) -> bool:
@@ -152,10 +167,31 @@ class Leftover:
     def channels(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(s.channel for s in self.found))
 
+    @property
+    def margin(self) -> float:
+        """The structure decision's margin in borderline bands: the test closest to (or furthest
+        past) its thresholds, > 0 when structure is found (:func:`test_margin`)."""
+        return self.closest[0][0] if self.closest else -np.inf
+
+    def margin_dict(self) -> dict:
+        if not self.closest:
+            return {"margin_in_bands": -np.inf}
+        m, top = self.closest[0]
+        return {"margin_in_bands": m, "channel": top.channel, "feature": top.feature, "rho": top.rho, "z": top.z,
+                "z_threshold": self.z_threshold, "min_rho": self.min_rho}
+
     def to_dict(self) -> dict:
         return {"significant": self.significant, "structures": [s.to_dict() for s in self.found[:10]],
                 "n_structures": len(self.found), "z_threshold": self.z_threshold, "n_tests": self.n_tests,
-                "min_rho": self.settings.min_rho, "min_rho_white": self.settings.min_rho_white}
+                "min_rho": self.min_rho, "min_rho_white": self.settings.min_rho_white,
+                "margin": self.margin_dict(),
+                "closest": [{"margin_in_bands": m, **x.to_dict()} for m, x in self.closest[:5]]}
+
+
+def test_margin(z: float, rho: float, z_threshold: float, min_rho: float, band: float) -> float:
+    """Margin of one structure test in borderline bands: the smaller of |z| / z_threshold - 1 and
+    |rho| / min_rho - 1, divided by ``band`` (> 0: both thresholds passed, a structure)."""
+    return min(abs(z) / z_threshold - 1.0, abs(rho) / min_rho - 1.0) / band
 
 
 def _channel_names(n: int, C: int) -> tuple[list[str], list[str]]:
@@ -165,11 +201,15 @@ def _channel_names(n: int, C: int) -> tuple[list[str], list[str]]:
 
 
 def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
-                       settings: StructureSettings | None = None) -> Leftover:
+                       settings: StructureSettings | None = None, *, named: bool = False,
+                       band: float = 0.1) -> Leftover:
     """The structure tests on the cross-validated residuals (S, N + C) of ``fit`` on ``data``
     (and on its alpha_hat errors against the camera, an :class:`~identification.diagnosis.gains.
-    AlphaHatErrors`, when given)."""
+    AlphaHatErrors`, when given).  ``named``: the model holds effects the diagnosis found, whose
+    fitted forms may differ from the true ones (``min_rho_named`` then applies); ``band``: the
+    borderline band of the margins (relative)."""
     s = settings or StructureSettings()
+    min_rho = s.min_rho_named if named else s.min_rho
     shift = sum(t.effect.fit_camera_shift(dict(t.shape)) for t in fit.model.terms)
     d = data.camera_shifted(shift)
     names, feats = state_features(d, fit.tension_hat)
@@ -201,19 +241,25 @@ def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
     zw = white * np.sqrt(np.maximum(n_eff // 1, 1))
     all_res = [res[:, k] for k in range(res.shape[1])] + ([series[1][0][:, j] for j in range(series[1][0].shape[1])]
                                                           if len(series) > 1 else [])
-    found = []
+    found, near = [], []
+
+    def structure(k, feature, r, zz, rms):
+        return Structure(ch_names[k], feature, float(r), float(abs(zz)), float(abs(r) / np.sqrt(max(1 - r * r, 1e-12))),
+                         rms, ch_units[k])
+
     for k in range(K):
         rms = float(np.sqrt(np.nanmean(all_res[k] ** 2)))
-        for f in range(feats.shape[1]):
-            if abs(z[k, f]) > zc and abs(rho[k, f]) >= s.min_rho:
-                r = rho[k, f]
-                found.append(Structure(ch_names[k], names[f], float(r), float(abs(z[k, f])),
-                                       float(abs(r) / np.sqrt(max(1 - r * r, 1e-12))), rms, ch_units[k]))
-        if zw[k] > zc and white[k] >= s.min_rho_white:
-            r = white[k]
-            found.append(Structure(ch_names[k], "whiteness", float(r), float(zw[k]),
-                                   float(abs(r) / np.sqrt(max(1 - r * r, 1e-12))), rms, ch_units[k]))
+        m = np.minimum(np.abs(z[k]) / zc - 1.0, np.abs(rho[k]) / min_rho - 1.0) / band    # test_margin, vectorised
+        for f in np.argsort(-m)[:3]:
+            near.append((float(m[f]), structure(k, names[f], rho[k, f], z[k, f], rms)))
+        for f in np.nonzero(m > 0)[0]:
+            found.append(structure(k, names[f], rho[k, f], z[k, f], rms))
+        mw = test_margin(zw[k], white[k], zc, s.min_rho_white, band) if white[k] > 0 else -np.inf
+        near.append((mw, structure(k, "whiteness", white[k], zw[k], rms)))
+        if mw > 0:
+            found.append(structure(k, "whiteness", white[k], zw[k], rms))
     found.sort(key=lambda x: -abs(x.rho))
+    near.sort(key=lambda e: -e[0])
     plot = None
     feature_found = [x for x in found if x.feature != "whiteness"]
     if feature_found:
@@ -223,4 +269,4 @@ def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
         arr, t, fa = series[block]
         col = k if block == 0 else k - res.shape[1]
         plot = (top, t, arr[:, col], fa[:, f])
-    return Leftover(tuple(found), zc, n_tests, s, plot)
+    return Leftover(tuple(found), zc, n_tests, s, plot, tuple(near[:10]), min_rho)

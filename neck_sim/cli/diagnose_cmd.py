@@ -69,9 +69,11 @@ def run(args) -> int:
     if args.json:
         diag.write_json(args.json)
         print(f"wrote {args.json}", file=sys.stderr)
-    if args.extended:
+    if args.extended and diag.extended is not None:
         diag.write_model(args.extended)
         print(f"wrote {args.extended}", file=sys.stderr)
+    elif args.extended:
+        print(f"no model written to {args.extended}: nothing could be fitted ({diag.verdict})", file=sys.stderr)
     if args.report:
         for path in write_report(diag, args.report):
             print(f"wrote {path}", file=sys.stderr)

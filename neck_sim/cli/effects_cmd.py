@@ -31,7 +31,9 @@ def run(args) -> int:
     else:
         for name, desc, params, shapes, req, plant in rows:
             print(f"{name:20s} {desc}\n{'':20s} fitted: {params}; shapes: {shapes}; requires: {req}; acts on: {plant}")
-    print(f"\n{effects.NONE}: the model explains the data")
+    print(f"\n{effects.INSUFFICIENT_EXCITATION}: the log cannot support a verdict (too short, too still): what it "
+          "lacks and what to record")
+    print(f"{effects.NONE}: the model explains the data")
     print(f"{effects.UNEXPLAINED}: the model leaves structure in the residuals beyond noise that no effect above "
           "explains (alone, or after the effects named)")
     return 0

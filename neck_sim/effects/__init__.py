@@ -21,6 +21,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from neck_sim.effects.actuation_delay import ActuationDelay
+from neck_sim.effects.backlash import BACKLASH_RANGE, Backlash
 from neck_sim.effects.base import Column, Design, Effect, Hidden, MotorEffect, Shape, clearly_nonzero
 from neck_sim.effects.cable_elasticity import CableElasticity
 from neck_sim.effects.camera_delay import CameraDelay
@@ -36,16 +37,19 @@ from neck_sim.effects.viscous_friction import ViscousFriction
 from neck_sim.params import NeckParams
 
 __all__ = ["Effect", "MotorEffect", "Column", "Shape", "Design", "Hidden", "clearly_nonzero", "register",
-           "unregister", "registered", "get", "names", "paper_model", "NONE", "UNEXPLAINED", "VOCABULARY", "EFFECT_TYPES",
+           "unregister", "registered", "get", "names", "paper_model", "NONE", "UNEXPLAINED", "INSUFFICIENT_EXCITATION", "VOCABULARY", "EFFECT_TYPES",
            "make_effect", "Effects", "DryFriction", "ViscousFriction", "StribeckFriction", "PulleyFriction",
            "CableElasticity", "TensionStiffening", "Payload", "SpringError", "ActuationDelay", "Pretension",
-           "PRETENSION_RANGE", "JointFriction", "CameraDelay"]
+           "PRETENSION_RANGE", "JointFriction", "CameraDelay", "Backlash", "BACKLASH_RANGE"]
 
 NONE = "none"
 """The verdict when the model explains the data."""
 
 UNEXPLAINED = "unexplained"
 """Part of the verdict when the residuals keep structure beyond noise that no effect removes."""
+
+INSUFFICIENT_EXCITATION = "insufficient_excitation"
+"""The verdict when the log cannot support one (too short, too still): its reasons say what to record."""
 
 _REGISTRY: dict[str, type[Effect]] = {}
 
@@ -58,9 +62,9 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise TypeError(f"register: expected a subclass of neck_sim.effects.Effect, got {cls!r}")
     name = cls.name
-    if not name or not name.isidentifier() or name in (NONE, UNEXPLAINED):
-        raise ValueError(f"register: {cls.__name__}.name must be an identifier other than 'none' and "
-                         f"'unexplained', got {name!r}")
+    if not name or not name.isidentifier() or name in (NONE, UNEXPLAINED, INSUFFICIENT_EXCITATION):
+        raise ValueError(f"register: {cls.__name__}.name must be an identifier other than 'none', "
+                         f"'unexplained' and 'insufficient_excitation', got {name!r}")
     if name in _REGISTRY and _REGISTRY[name] is not cls:
         raise ValueError(f"register: an effect called {name!r} exists ({_REGISTRY[name].__name__})")
     missing = [r for r in cls.requires if r not in _REGISTRY]
@@ -107,11 +111,11 @@ def paper_model() -> tuple[str, ...]:
 
 
 for _cls in (DryFriction, ViscousFriction, StribeckFriction, PulleyFriction, CableElasticity, TensionStiffening,
-             Payload, SpringError, ActuationDelay, Pretension, JointFriction, CameraDelay):
+             Payload, SpringError, ActuationDelay, Pretension, JointFriction, CameraDelay, Backlash):
     register(_cls)
 _BUILTIN = frozenset(_REGISTRY)
 
-VOCABULARY = names() + (NONE, UNEXPLAINED)
+VOCABULARY = names() + (INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED)
 """The built-in names a diagnosis may report (``none``: the model explains the data;
 ``unexplained``: structure is left that no effect removes)."""
 
@@ -200,6 +204,13 @@ class Effects:
         out = np.zeros(n_cables)
         for e in self.active():
             out = out + e.elongation_offset(n_cables)
+        return out
+
+    def encoder_band(self, n_cables: int) -> np.ndarray:
+        """(n_cables,) m of cable: the dead band between each motor and its drum (backlash)."""
+        out = np.zeros(n_cables)
+        for e in self.active():
+            out = out + e.encoder_band(n_cables)
         return out
 
     def command_delay(self) -> float:

@@ -14,6 +14,8 @@ effect overrides (the defaults do nothing):
   ``neck_plant`` struct of ``neck_sim/native/plant_callback.c``); ``None`` = no native kernel (the
   plant then needs ``backend="python"``);
 * ``elongation_offset(n_cables)`` -- m added to every cable elongation (pretension);
+* ``encoder_band(n_cables)`` -- ``kind = "encoder"``: a dead band (m of cable) between each motor
+  shaft, which carries the encoder, and its drum (backlash);
 * ``command_delay`` (s) -- the commanded force acts that much later; ``camera_delay`` (s) -- a
   camera frame stamped t shows the neck at t - camera_delay;
 * ``setup_mujoco(model, data, index)`` -- edit MuJoCo's compiled model or data directly
@@ -26,8 +28,10 @@ regressor columns, linear in the effect's magnitudes once its shape parameters a
   cable/joint or one in all, physical sign); ``design(data, shape, context)`` builds them;
 * ``shapes`` -- the nonlinear :class:`Shape` parameters (default, search grid, refinement);
 * ``requires`` -- effects that must already be in the model (Stribeck needs dry friction);
-* ``fit_delay(shape)``, ``fit_camera_shift(shape)``, ``fit_elongation_offset(shape, n_cables)`` --
-  effects that shift the observations, the camera or the elongations instead of adding columns;
+* ``fit_delay(shape)``, ``fit_camera_shift(shape)``, ``fit_elongation_offset(shape, n_cables)``,
+  ``fit_elongation_series(data, shape)``, ``fit_force_offset(data, shape)`` -- effects that shift
+  the observations, the camera or the elongations instead of adding columns (``fit_cable_offset`` the per-cable trial offset of
+  a ``Shape.per_cable`` search);
 * ``to_plant(params, values, shape)`` -- the fitted result back as plant constants and an effect;
   ``when_absent(params, elastic)`` -- the plant constants when a model lacks a baseline effect.
 
@@ -264,6 +268,11 @@ class Effect:
         """(n_cables,) m added to every elongation."""
         return np.zeros(n_cables)
 
+    def encoder_band(self, n_cables: int) -> np.ndarray:
+        """(n_cables,) m of cable: a dead band between each motor shaft (the encoder) and its drum
+        (``kind = "encoder"``; the plant keeps the motor's lead, see :mod:`neck_sim.effects.backlash`)."""
+        return np.zeros(n_cables)
+
     def setup_mujoco(self, model, data, index) -> None:
         """Edit the compiled MuJoCo model/data (``index``: :func:`neck_sim.mjcf.model_index`);
         called after every reset, so it must set values, not accumulate them."""
@@ -297,6 +306,26 @@ class Effect:
     def fit_elongation_offset(cls, shape: dict, n_cables: int) -> np.ndarray:
         """(n_cables,) m this term adds to the measured elongations."""
         return np.zeros(n_cables)
+
+    @classmethod
+    def fit_elongation_series(cls, data, shape: dict) -> np.ndarray | None:
+        """(S, C) m this term adds to the measured elongations sample by sample (None: nothing);
+        for offsets that follow the motion (a dead band)."""
+        return None
+
+    @classmethod
+    def fit_force_offset(cls, data, shape: dict) -> tuple[np.ndarray, np.ndarray] | None:
+        """(fast (T, C), slow (S, C)) N this term adds to the cable-side observations
+        y_C = f - (R/r_d) I_a theta_ddot (None: nothing); e.g. the inertia term read from the
+        drum's acceleration where the encoders show the motor's."""
+        return None
+
+    @classmethod
+    def fit_cable_offset(cls, data, cable: int, value: float) -> np.ndarray:
+        """(S,) or scalar m added to cable ``cable``'s measured elongation when the per-cable shape
+        (``Shape.per_cable``) of this effect is ``value``: the per-cable search's trial offset
+        (default: ``value`` itself, a rest elongation)."""
+        return value
 
     @classmethod
     def to_plant(cls, params: NeckParams, values: dict, shape: dict) -> tuple[NeckParams, "Effect | None"]:

@@ -13,10 +13,16 @@ and hides each effect by another mechanism than the candidate's:
   force (MuJoCo's ``dof_frictionloss`` on a motor slide is no Coulomb friction: its soft
   constraint with the slide's 16 kg reflected inertia acts as a damper below about 1 cm/s), a command FIFO
   (actuation delay), camera frames restamped late (camera delay), an encoder offset
-  (pretension: the encoders were zeroed with the cables stretched);
-* effects the vocabulary has no name for: gear backlash (a play operator between motor and
-  drum), cable creep (the cables lengthen in proportion to the integral of their tension), a
-  camera scale error.
+  (pretension: the encoders were zeroed with the cables stretched), a smooth play between the
+  encoder's motor and the drum (backlash: the lead swings exponentially, not the diagnosis'
+  clipped play);
+* effects the vocabulary has no name for: cable creep (the cables lengthen in proportion to the
+  integral of their tension), a camera scale error, a cable's own hysteresis (a Dahl-like force
+  that lags the cable's stretch direction).
+
+Excitations: the §5.2.2 sequences (:func:`trajectory`) or a random multisine in joint space
+(:class:`Multisine`, an excitation the tool did not design); :func:`combine` hides several
+effects at once.
 
 Runs: :func:`simulate` (the paper's routing: a motor servo around the flat-output feed-forward of
 the identification shape) and :func:`simulate_reachable` (any routing, e.g. 10 joints and 4 cables:
@@ -39,6 +45,7 @@ from identification.excitation import paper_amplitudes, predict_run, sequences_t
 from neck_sim.logs import LogWriter
 from neck_sim.params import NeckParams, default_params
 from neck_sim.plant import Plant
+from neck_sim.trajectory import TrajectorySample
 
 UNEXPLAINED = "unexplained"     # the vocabulary's name, written here (no import of neck_sim.effects)
 
@@ -104,13 +111,17 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, param
     no_dry = p.replace(**{"friction.f_s": (0.0,) * p.n_cables})
     if name == "none":
         return Spec(name, "none", 0.0, Hooks(), p, description="no hidden effect (noise only)")
-    if name == "dry_friction":                     # tanh Coulomb law on the commanded force, written here
+    if name in ("dry_friction", "dry_friction_all"):   # tanh Coulomb law on the commanded force, written here
         F, w0 = 10.0 * factor, 0.3
+        where = slice(None) if name == "dry_friction_all" else cable
 
         def force(k, f, pl):
             out = f.copy()
-            out[cable] -= F * np.tanh(pl.truth().theta_dot[cable] / w0)
+            out[where] -= F * np.tanh(pl.truth().theta_dot[where] / w0)
             return out
+        if name == "dry_friction_all":
+            return Spec(name, "dry_friction", F, Hooks(force=force), no_dry, "cable_elasticity,tension_stiffening",
+                        None, tuple(range(p.n_cables)), (), f"tanh Coulomb friction {F:.1f} N on every cable")
         return Spec(name, "dry_friction", F, Hooks(force=force), no_dry, "cable_elasticity,tension_stiffening",
                     f"f_s({cable + 1})", (cable,), (), f"tanh Coulomb friction {F:.1f} N on cable {cable + 1}")
     if name in ("viscous_friction", "viscous_friction_left"):   # MuJoCo damping on the motor slide
@@ -171,16 +182,24 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, param
             pl.model.body_mass[b], pl.model.body_ipos[b], pl.model.body_inertia[b] = M0 + m, c, I
         return Spec(name, "payload", m, Hooks(edit=edit), p, symbol="payload",
                     description=f"{1e3 * m:.0f} g body 6 mm off the head bar's middle")
-    if name == "actuation_delay":                  # a FIFO of commands
+    if name in ("actuation_delay", "actuation_delay_one"):     # a FIFO of commands (on one motor only)
         d = 0.010 * factor
         lag = max(int(round(d * p.control.rate_hz)), 1)
         fifo: list = []
+        one = name == "actuation_delay_one"
 
         def force(k, f, pl):
             fifo.append(f.copy())
-            return fifo[max(len(fifo) - 1 - lag, 0)]
-        return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p, symbol="delay",
-                    description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)")
+            late = fifo[max(len(fifo) - 1 - lag, 0)]
+            if not one:
+                return late
+            out = f.copy()
+            out[cable] = late[cable]
+            return out
+        return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p,
+                    symbol=None if one else "delay", cables=(cable,) if one else (),
+                    description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)"
+                                + (f" on motor {cable + 1} only" if one else ""))
     if name == "camera_delay":                     # frames restamped late
         d = 0.033 * factor
         return Spec(name, "camera_delay", d, Hooks(camera=lambda t, a: (t + d, a)), p, symbol="delay",
@@ -196,17 +215,30 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, param
             return theta - offset
         return Spec(name, "pretension", x0, Hooks(encoder=encoder), p, symbol=f"x0({cable + 1})", cables=(cable,),
                     description=f"encoder {cable + 1} zeroed {1e3 * x0:.1f} mm of cable early")
-    if name == "backlash":                         # out of vocabulary: play between motor and drum
-        play = 0.5e-3 * factor * ratio            # rad at the motor shaft (0.5 mm of cable)
+    if name in ("backlash", "backlash_all"):      # play between motor (encoder) and drum, a formula of its own
+        band = 0.3e-3 * factor                    # m of cable
+        cable = cable % n_joints                  # a right cable, or every motor
+        where = np.arange(p.n_cables) if name == "backlash_all" else np.array([cable])
+        half = 0.5 * band * ratio                 # rad at the motor shaft
         state = {}
 
         def encoder(theta):
-            prev = state.get("enc", theta.copy())
-            enc = np.clip(prev, theta - play / 2, theta + play / 2)
-            state["enc"] = enc
-            return enc
-        return Spec(name, UNEXPLAINED, play, Hooks(encoder=encoder), p,
-                    description=f"gear backlash {1e3 * play / ratio:.2f} mm of cable on every motor")
+            # the motor leads the drum it turns (the plant's slide: theta): after a reversal the
+            # lead swings to the other side, approaching +-half exponentially with a scale of a
+            # thirtieth of the half band of drum travel (a smooth play, not the plant's clipped one)
+            prev = state.get("drum", theta.copy())
+            lead = state.get("lead", np.zeros_like(theta))
+            d = theta - prev
+            gain = 1.0 - np.exp(-np.abs(d) / (half / 30))
+            lead = lead + (np.sign(d) * half - lead) * gain
+            lead[np.setdiff1d(np.arange(theta.size), where)] = 0.0
+            state["drum"], state["lead"] = theta.copy(), lead
+            return theta + lead
+        cables = tuple(int(c) for c in where)
+        return Spec(name, "backlash", band, Hooks(encoder=encoder), p, symbol=None if name == "backlash_all"
+                    else f"band({cable + 1})", cables=cables,
+                    description=f"gear backlash {1e3 * band:.2f} mm of cable on "
+                                + ("every motor" if name == "backlash_all" else f"motor {cable + 1}"))
     if name == "creep":                            # out of vocabulary: cables lengthen under load
         beta = 4e-6 * factor                        # m of creep per N s of tension (about 2 mm per log)
         state = {"x": np.zeros(p.n_cables)}
@@ -224,15 +256,74 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, param
         s = 1.0 + 0.08 * factor
         return Spec(name, UNEXPLAINED, s - 1, Hooks(camera=lambda t, a: (t, s * a)), p,
                     description=f"camera angles x {s:.3f}")
+    if name == "cable_hysteresis":                 # out of vocabulary: a cable whose tension lags its stretch
+        h = 6.0 * factor                            # N of hysteresis on a right cable
+        cable = cable % n_joints
+        state = {}
+
+        def force(k, f, pl):
+            # a Dahl-like internal friction of the cable itself, in series with the motor: the
+            # force that reaches the cable lags the cable's stretch direction
+            x = pl.truth().elongation[cable]
+            prev = state.get("x", x)
+            z = state.get("z", 0.0)
+            z = float(np.clip(z + (x - prev) / 2e-4, -1.0, 1.0))      # saturates over 0.2 mm of stretch
+            state["x"], state["z"] = x, z
+            out = f.copy()
+            out[cable] -= h * z
+            return out
+        return Spec(name, UNEXPLAINED, h, Hooks(force=force), p, cables=(cable,),
+                    description=f"cable {cable + 1} hysteresis {h:.1f} N over 0.2 mm of stretch")
     raise ValueError(f"generator: unknown case {name!r} (known: {', '.join(CASES)})")
 
 
-CASES = ("none", "dry_friction", "viscous_friction", "viscous_friction_left", "stribeck_friction", "joint_friction",
-         "spring_error", "payload", "actuation_delay", "camera_delay", "pretension", "pretension_left", "backlash",
-         "creep", "camera_scale")
+def combine(specs) -> Spec:
+    """Two or more hidden effects at once (their hooks chained: edits and encoder/camera formulas
+    in order, forces one after the other); ``expect`` joins the names with ``+``, the baseline
+    model is the first one's.  The cases must not need different nominal parameters (dry
+    friction's case removes the plant's own: combine it with effects on the default plant
+    only when it comes first)."""
+    specs = list(specs)
+    hooks = [s.hooks for s in specs]
+
+    def edit(pl):
+        for h in hooks:
+            if h.edit is not None:
+                h.edit(pl)
+
+    def force(k, f, pl):
+        for h in hooks:
+            if h.force is not None:
+                f = h.force(k, f, pl)
+        return f
+
+    def encoder(theta):
+        for h in hooks:
+            if h.encoder is not None:
+                theta = h.encoder(theta)
+        return theta
+
+    def camera(t, a):
+        for h in hooks:
+            if h.camera is not None:
+                t, a = h.camera(t, a)
+        return t, a
+    return Spec("+".join(s.name for s in specs), "+".join(s.expect for s in specs), 0.0,
+                Hooks(edit, force, encoder, camera), specs[0].params, specs[0].model,
+                description=" and ".join(s.description for s in specs))
+
+
+CASES = ("none", "dry_friction", "dry_friction_all", "viscous_friction", "viscous_friction_left", "stribeck_friction",
+         "joint_friction", "spring_error", "payload", "actuation_delay", "actuation_delay_one", "camera_delay",
+         "pretension", "pretension_left", "backlash", "backlash_all", "creep", "camera_scale", "cable_hysteresis")
+PAIRS = ("viscous_friction+payload", "spring_error+actuation_delay", "joint_friction+camera_delay",
+         "payload+pretension", "stribeck_friction+spring_error", "actuation_delay+camera_delay")
+"""Two effects hidden at once (:func:`combine`): on different channels or shapes, each at its
+test magnitude."""
 OUT_OF_VOCABULARY = ("creep", "camera_scale")
-"""The out-of-vocabulary effects the blind tests require ``unexplained`` for (backlash: see the
-README's detection table, it is read as an actuation delay)."""
+"""The out-of-vocabulary effects the blind tests require ``unexplained`` for.  (``cable_hysteresis``,
+the third, is in the detection benchmark only: at its test level it gives ``unexplained`` in 1 of 3
+seeds and ``pretension`` in 2, docs/diagnosis.md.)"""
 
 
 # ------------------------------------------------------------------------------------ simulation
@@ -315,11 +406,60 @@ def simulate_reachable(path, spec: Spec, seed: int, *, moves: int = 10, move_tim
     return os.fspath(path)
 
 
-def simulate(path, spec: Spec, seed: int, *, sequences: int = 2) -> str:
-    """Drive a nominal plant with ``spec``'s hidden effect along :func:`trajectory` with a motor
-    servo around the nominal feed-forward, write the measured topics (atomic).  Returns ``path``."""
+@dataclass(frozen=True)
+class Multisine:
+    """A random multisine in joint space, the kind of excitation a user records on a prototype
+    (not designed by the tool): per joint, ``components`` sines of frequencies drawn in
+    [0.1, 0.6] Hz with random phases, scaled so that the largest |alpha_j| is ``fraction`` of the
+    paper's amplitude of that joint (40, 30, 20 deg for N = 3), faded in and out over ``ramp`` s
+    by a quintic smoothstep (starts and ends at rest, straight).  ``sample(t)`` -> (alpha, alpha_dot,
+    alpha_ddot), rad, rad/s, rad/s^2, t.shape + (N,)."""
+
+    duration: float
+    freqs: np.ndarray = field(repr=False)       # (N, K) Hz
+    phases: np.ndarray = field(repr=False)      # (N, K) rad
+    amps: np.ndarray = field(repr=False)        # (N, K) rad
+    ramp: float = 1.0
+    name: str = "random multisine"
+
+    @classmethod
+    def draw(cls, params: NeckParams, seed: int, duration: float = 12.0, components: int = 4,
+             fraction: float = 0.8, ramp: float = 1.0) -> "Multisine":
+        rng = np.random.default_rng([seed, 7919])
+        n = params.n_joints
+        freqs = rng.uniform(0.1, 0.6, (n, components))
+        phases = rng.uniform(0, 2 * np.pi, (n, components))
+        amps = rng.uniform(0.5, 1.0, (n, components))
+        probe = cls(duration, freqs, phases, amps, ramp)
+        t = np.linspace(0.0, duration, int(duration * 200) + 1)
+        peak = np.abs(probe.sample(t)[0]).max(0)
+        target = fraction * paper_amplitudes(n)[0]
+        return cls(duration, freqs, phases, amps * (target / peak)[:, None], ramp, f"random multisine (seed {seed})")
+
+    def sample(self, t):
+        t = np.asarray(t, dtype=float)[..., None, None]
+        w = 2 * np.pi * self.freqs
+        arg = w * t + self.phases
+        s0 = (self.amps * np.sin(arg)).sum(-1)
+        s1 = (self.amps * w * np.cos(arg)).sum(-1)
+        s2 = (-self.amps * w * w * np.sin(arg)).sum(-1)
+        tt = t[..., 0, 0]
+        # quintic smoothstep envelope e(t) (C2: no jump in the acceleration), 0 at both ends
+        u = np.clip(np.minimum(tt, self.duration - tt) / self.ramp, 0.0, 1.0)
+        du = np.where((u > 0) & (u < 1), np.where(tt < self.duration / 2, 1.0, -1.0) / self.ramp, 0.0)
+        e0 = u ** 3 * (10 - 15 * u + 6 * u * u)
+        e1 = 30 * u * u * (1 - u) ** 2 * du
+        e2 = 60 * u * (1 - u) * (1 - 2 * u) * du * du
+        e0, e1, e2 = e0[..., None], e1[..., None], e2[..., None]
+        return TrajectorySample(e0 * s0, e1 * s0 + e0 * s1, e2 * s0 + 2 * e1 * s1 + e0 * s2)
+
+
+def simulate(path, spec: Spec, seed: int, *, sequences: int = 2, excitation=None) -> str:
+    """Drive a nominal plant with ``spec``'s hidden effect along :func:`trajectory` (or
+    ``excitation``, anything with ``duration`` and ``sample(t)``, e.g. a :class:`Multisine`) with a
+    motor servo around the nominal feed-forward, write the measured topics (atomic).  Returns ``path``."""
     p = spec.params
-    traj = trajectory(p, sequences)
+    traj = trajectory(p, sequences) if excitation is None else excitation
     rate = p.control.rate_hz
     dt = 1.0 / rate
     steps = int(round(traj.duration * rate)) + 1

@@ -1,0 +1,140 @@
+"""Verdicts a researcher can trust: clean logs give ``none``, logs that cannot support a verdict
+give ``insufficient_excitation`` with what to record, every decision carries its margins, and the
+verdict does not flip under last-bit changes of the geometry.
+
+The clean logs are a representative slice of ``benchmarks/bench_false_alarms.py``'s grid: the
+control test of ``neck-sim simulate`` (law 2, the log that gave ``spring_error + unexplained``)
+and a random multisine of the open-world generator (an excitation the tool did not design).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from identification.diagnosis import DiagnosisSettings, diagnose_log
+from identification.diagnosis.support import ExcitationSummary, SupportSettings, log_gaps, reversals
+from neck_sim.cli import main as cli_main
+from neck_sim.logs import LogWriter
+from neck_sim.params import default_params
+from open_world.generator import Multisine, make_spec, simulate
+
+SETTINGS = DiagnosisSettings(max_steps=1, resimulate=False)      # the verdict is decided at step 1
+OK = ("none", "insufficient_excitation")
+
+
+@pytest.fixture(scope="module")
+def control_test_log(tmp_path_factory):
+    from controllers.parallel import RunSpec, run_one
+
+    path = str(tmp_path_factory.mktemp("clean") / "control-test-law2.mcap")
+    run_one(RunSpec("control test law 2", default_params(), law=2, trajectory="control-test", seed=0, log_path=path))
+    return path
+
+
+@pytest.fixture(scope="module")
+def control_test_diag(control_test_log):
+    return diagnose_log(control_test_log, settings=SETTINGS)
+
+
+def test_clean_control_test_log_gives_none(control_test_diag):
+    assert control_test_diag.verdict == "none", control_test_diag.to_dict()["margins"]
+    assert not control_test_diag.findings and not control_test_diag.leftover.significant
+
+
+def test_clean_multisine_log_gives_none(tmp_path):
+    """An excitation the tool did not design (random multisine in joint space, 12 s)."""
+    spec = make_spec("none", 3)
+    path = simulate(tmp_path / "multisine.mcap", spec, 3, excitation=Multisine.draw(spec.params, 3, duration=12.0))
+    diag = diagnose_log(path, settings=SETTINGS)
+    assert diag.verdict in OK, diag.to_dict()["margins"]
+
+
+def test_margins_agree_with_the_decisions(control_test_diag):
+    """Two computations of one decision: the significance tests and the sign of their margins."""
+    d = control_test_diag
+    for c in d.steps[0].candidates:
+        if c.valid and np.isfinite(c.margin):
+            assert (c.margin > 0) == c.significant, (c.term.name, c.margin, c.margins)
+            assert c.alpha == pytest.approx(d.settings.alpha / len(d.steps[0].candidates))
+    assert (d.leftover.margin > 0) == d.leftover.significant
+    out = d.to_dict()
+    assert set(out["margins"]) == {"step_1", "structure"} and isinstance(out["borderline"], bool)
+    assert out["borderline"] == any(abs(m["margin_in_bands"]) < 1 for m in out["margins"].values())
+    json.dumps(out)
+
+
+def test_verdict_does_not_flip_under_last_bit_geometry_changes(control_test_log, control_test_diag):
+    from neck_sim.logs import read_log
+
+    p = read_log(control_test_log, topics=("motors",)).params
+    g = p.geometry
+    q = p.replace(**{"geometry.b": g.b * (1 + 1e-12), "geometry.L": g.L * (1 - 1e-12), "geometry.r": g.r * (1 + 1e-12)})
+    d = diagnose_log(control_test_log, settings=SETTINGS, params=q)
+    assert d.verdict == control_test_diag.verdict
+    for a, b in zip(control_test_diag.steps[0].candidates, d.steps[0].candidates):
+        assert a.significant == b.significant and a.margin == pytest.approx(b.margin, abs=1e-3)
+    assert d.leftover.margin == pytest.approx(control_test_diag.leftover.margin, abs=1e-3)
+
+
+# ------------------------------------------------------------------------ insufficient excitation
+
+def _write(path, duration, theta_fn, alpha_fn, seed=0):
+    """A log written directly: motors at 500 Hz (theta_fn(t) (m,) rad, constant forces 20 N) and
+    the camera at 30 Hz (alpha_fn(t) + 1 deg noise)."""
+    p = default_params()
+    rng = np.random.default_rng(seed)
+    with LogWriter(path, p) as w:
+        for t in np.arange(0.0, duration, 1 / 500):
+            w.motors(float(t), theta_fn(t), np.full(p.n_cables, 20.0))
+        for t in np.arange(0.0, duration, 1 / 30):
+            w.camera(float(t), alpha_fn(t) + np.radians(1.0) * rng.standard_normal(p.n_joints))
+    return str(path)
+
+
+def test_too_short_log_gets_insufficient_excitation_and_exit_0(tmp_path, capsys):
+    path = _write(tmp_path / "short.mcap", 5.0, lambda t: np.full(4, np.sin(t)), lambda t: np.zeros(3))
+    diag = diagnose_log(path, settings=SETTINGS)
+    assert diag.verdict == "insufficient_excitation" and diag.baseline is None and not diag.findings
+    assert "record at least 8 s" in diag.gaps[0].describe()
+    out = tmp_path / "d.json"
+    assert cli_main(["diagnose", path, "--quiet", "--no-resim", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["verdict"] == "insufficient_excitation" and data["gaps"][0]["fatal"]
+    assert "insufficient_excitation" in capsys.readouterr().out
+
+
+def test_still_log_gets_insufficient_excitation_with_its_reasons(tmp_path):
+    path = _write(tmp_path / "still.mcap", 12.0, lambda t: np.zeros(4), lambda t: np.zeros(3))
+    diag = diagnose_log(path, settings=SETTINGS)
+    assert diag.verdict == "insufficient_excitation" and not diag.findings
+    text = "\n".join(g.describe() for g in diag.gaps)
+    assert "too still" in text and "no cable that reverses" in text
+    for j in (1, 2, 3):
+        assert f"record moves of joint {j}" in text
+
+
+def test_gap_lines_say_what_is_missing_and_what_to_record():
+    s = SupportSettings()
+    ok = ExcitationSummary(12.0, (40.0,) * 4, (8,) * 4, (5.0,) * 4, (50.0,) * 4, (60.0, 50.0, 40.0), 2.0)
+    assert log_gaps(ok, 3, s) == ()
+    weak = ExcitationSummary(12.0, (40.0,) * 4, (8, 8, 8, 1), (5.0, 5.0, 5.0, 12.0), (50.0, 50.0, 50.0, 25.0),
+                             (60.0, 2.0, 40.0), 2.0)
+    lines = [g.describe() for g in log_gaps(weak, 3, s)]
+    assert len(lines) == 3 and not any(g.fatal for g in log_gaps(weak, 3, s))
+    assert any(x.startswith("cable 4 stays between 12 and 25 N") and "lambda(4)" in x and "k(4)" in x
+               and "pull it to 42 N" in x for x in lines)
+    assert any(x.startswith("cable 4 reverses 1 time") for x in lines)
+    assert any(x.startswith("joint 2 moves over 2.0 deg") and "dk(2L)" in x for x in lines)
+    short = dataclasses.replace(ok, duration_s=6.0)
+    assert log_gaps(short, 3, s)[0].fatal
+
+
+def test_reversals_ignore_noise_around_zero():
+    t = np.linspace(0, 10, 2001)
+    rng = np.random.default_rng(1)
+    assert reversals(0.05 * rng.standard_normal(t.size), 0.2) == 0
+    assert reversals(np.sin(2 * np.pi * 0.5 * t) + 0.05 * rng.standard_normal(t.size), 0.2) == 9
