@@ -33,7 +33,8 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+_ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+sys.path[:0] = [_ROOT, os.path.join(_ROOT, "tests")]     # this checkout's code, not the installed one
 
 MOVES = 31             # 31 moves of 1.5 s + 0.4 s holds: 59.3 s
 NECKS = ("paper", "neck10x4")
