@@ -83,13 +83,14 @@ def test_verdict_does_not_flip_under_last_bit_geometry_changes(control_test_log,
 # ------------------------------------------------------------------------ insufficient excitation
 
 def _write(path, duration, theta_fn, alpha_fn, seed=0):
-    """A log written directly: motors at 500 Hz (theta_fn(t) (m,) rad, constant forces 20 N) and
-    the camera at 30 Hz (alpha_fn(t) + 1 deg noise)."""
+    """A log written directly: motors at 500 Hz (theta_fn(t) (m,) rad, forces 20 N with a 0.1 N
+    ripple: the reader refuses a force that stays bit-identical while its motor turns as a stale
+    logger) and the camera at 30 Hz (alpha_fn(t) + 1 deg noise)."""
     p = default_params()
     rng = np.random.default_rng(seed)
     with LogWriter(path, p) as w:
         for t in np.arange(0.0, duration, 1 / 500):
-            w.motors(float(t), theta_fn(t), np.full(p.n_cables, 20.0))
+            w.motors(float(t), theta_fn(t), 20.0 + 0.1 * np.sin(3.0 * t + np.arange(p.n_cables)))
         for t in np.arange(0.0, duration, 1 / 30):
             w.camera(float(t), alpha_fn(t) + np.radians(1.0) * rng.standard_normal(p.n_joints))
     return str(path)
