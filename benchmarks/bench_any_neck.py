@@ -20,7 +20,7 @@ re-simulation) from the nominal model; printed: verdict, where, magnitude agains
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
-    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # about 4 min per seed
+    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # about 1.5 min CPU per seed
 """
 
 from __future__ import annotations
