@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import sys
 
-from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_paths,
-                                 load_params_file, nonnegative_float, positive_float, report_input_warnings)
+from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_params_fit_log,
+                                 check_paths, load_params_file, nonnegative_float, positive_float,
+                                 report_input_warnings)
 
 HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
 
@@ -45,7 +46,6 @@ def run(args) -> int:
     check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"--json": args.json}, dirs={"--plots": args.plots})
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
-    from neck_sim.cli.common import check_params_fit_log
     from neck_sim.logs import read_log
     from neck_sim.logs.reader import require_camera_frames
     from neck_sim.atomic import atomic_write_json
