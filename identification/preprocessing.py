@@ -378,7 +378,9 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
         lo, hi = max(lo, tc[0]), min(hi, tc[-1])
         if hi - lo < 4 * s.trim_s + 64 / rate:
             raise ValueError(f"camera: its frames ({tc[0]:.3f}..{tc[-1]:.3f} s) overlap the motor samples "
-                             f"({t_grid[0]:.3f}..{t_grid[-1]:.3f} s) for too short a time")
+                             f"({t_grid[0]:.3f}..{t_grid[-1]:.3f} s) for too short a time: "
+                             f"{max(hi - lo, 0.0):.1f} s together, at least {4 * s.trim_s + 64 / rate:.1f} s needed; "
+                             f"record a longer run (`neck-sim simulate --trajectory identification` runs 85 s)")
         cam = (tc, ac)
     idx = np.nonzero((t_grid >= lo) & (t_grid <= hi))[0]
     if idx.size < 64:
