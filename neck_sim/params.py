@@ -27,6 +27,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from neck_sim.atomic import atomic_write_bytes
+from neck_sim.native import MAX_CABLES   # most joints and cables: the arrays of the compiled callback
+from neck_sim.validation import ParameterError, check_array, check_integer, check_positive, is_integer
 
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
@@ -34,15 +36,6 @@ __all__ = [
     "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing", "neck10x4_routing",
     "mirrored_paper_routing", "EXAMPLES", "example_params",
 ]
-
-
-class ParameterError(ValueError):
-    """An invalid parameter value; the message names the offending field."""
-
-
-MAX_CABLES = 32
-"""Most joints and most cables a neck may have: the arrays of the plant's compiled callback
-(``NECK_MAXC`` in ``neck_sim/native/plant_callback.c``; a test holds the two equal)."""
 
 
 def _f(default, unit: str, source: str, **kw):
@@ -66,60 +59,6 @@ def _per_cable(sides: tuple[str, ...], right: tuple[float, ...], left: float) ->
     return tuple(out)
 
 
-def _check_number(obj, name: str) -> float:
-    """The field as a float, or ParameterError when it is not a number (a string, a bool, a list)."""
-    v = getattr(obj, name)
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be a number, got {v!r} "
-                             f"({type(v).__name__})")
-    object.__setattr__(obj, name, float(v))
-    return float(v)
-
-
-def _is_integer(v) -> bool:
-    """A whole number (an int, or a finite float without fraction); bools and strings are not."""
-    return (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-            and math.isfinite(v) and int(v) == v)
-
-
-def _check_integer(obj, name: str, minimum: int, maximum: int | None = None) -> None:
-    v = getattr(obj, name)
-    if not (_is_integer(v) and v >= minimum and (maximum is None or v <= maximum)):
-        limit = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be an integer {limit}, got {v!r}")
-    object.__setattr__(obj, name, int(v))
-
-
-def _check_positive(obj, *names: str, strict: bool = True) -> None:
-    for name in names:
-        v = _check_number(obj, name)
-        bad = (not math.isfinite(v)) or (v <= 0 if strict else v < 0)
-        if bad:
-            kind = "positive" if strict else "non-negative"
-            raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be finite and {kind}, got {v!r}")
-
-
-def _check_array(obj, name: str, length: int | None, *, positive: bool = False,
-                 non_negative: bool = False) -> None:
-    v = getattr(obj, name)
-    try:
-        arr = np.asarray(v, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: not a list of numbers ({exc})") from None
-    if arr.ndim != 1:
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: expected a flat list, got shape {arr.shape}")
-    if length is not None and arr.shape[0] != length:
-        raise ParameterError(
-            f"{type(obj).__name__.lower()}.{name}: expected {length} values, got {arr.shape[0]}")
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: contains NaN or infinity")
-    if positive and np.any(arr <= 0):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: all values must be > 0, got {tuple(arr)}")
-    if non_negative and np.any(arr < 0):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: all values must be >= 0, got {tuple(arr)}")
-    object.__setattr__(obj, name, tuple(float(x) for x in arr))
-
-
 @dataclass(frozen=True)
 class Geometry:
     """X-joint and pulley geometry (metres, radians)."""
@@ -132,9 +71,9 @@ class Geometry:
                           "assumption: joint range |alpha| < pi/2, the range of the paper's §5.6 study")
 
     def __post_init__(self):
-        _check_integer(self, "n_joints", 1, MAX_CABLES)
-        _check_positive(self, "b", "L", "alpha_max")
-        _check_positive(self, "r", strict=False)
+        check_integer(self, "n_joints", 1, MAX_CABLES)
+        check_positive(self, "b", "L", "alpha_max")
+        check_positive(self, "r", strict=False)
         if self.L <= self.b:
             raise ParameterError(f"geometry.L: the diagonal L = {self.L} m must be longer than the bar b = {self.b} m")
         if not self.alpha_max < math.pi:
@@ -156,8 +95,8 @@ class Actuation:
     t_min: float = _f(8.5, "N", "paper §6.2: minimal cable tension t_min = 8.5 N")
 
     def __post_init__(self):
-        _check_positive(self, "r_d", "R", "I_a", "f_max")
-        _check_positive(self, "f_min", "t_min", strict=False)
+        check_positive(self, "r_d", "R", "I_a", "f_max")
+        check_positive(self, "f_min", "t_min", strict=False)
         for name in ("f_min", "t_min"):
             if getattr(self, name) > self.f_max:
                 raise ParameterError(f"actuation.{name}: {getattr(self, name)} N exceeds f_max = {self.f_max} N")
@@ -180,8 +119,8 @@ class Springs:
     def __post_init__(self):
         if self.stiffness is None:
             raise ParameterError("springs.stiffness: required (use NeckParams.default)")
-        _check_array(self, "stiffness", None, non_negative=True)
-        _check_positive(self, "rest_length")
+        check_array(self, "stiffness", None, non_negative=True)
+        check_positive(self, "rest_length")
 
 
 @dataclass(frozen=True)
@@ -195,8 +134,8 @@ class Inertia:
 
     def __post_init__(self):
         # Moving bars need mass: a massless body has no inertia for MuJoCo (nor for M of eq 24).
-        _check_positive(self, "bar_mass", "diagonal_mass")
-        _check_positive(self, "gravity", "payload_mass", strict=False)
+        check_positive(self, "bar_mass", "diagonal_mass")
+        check_positive(self, "gravity", "payload_mass", strict=False)
 
 
 @dataclass(frozen=True)
@@ -210,8 +149,8 @@ class Friction:
     def __post_init__(self):
         if self.f_s is None:
             raise ParameterError("friction.f_s: required (use NeckParams.default)")
-        _check_array(self, "f_s", None, non_negative=True)
-        _check_positive(self, "c_s")
+        check_array(self, "f_s", None, non_negative=True)
+        check_positive(self, "c_s")
 
 
 @dataclass(frozen=True)
@@ -230,12 +169,12 @@ class Cables:
         for name in ("k", "lam", "c_a"):
             if getattr(self, name) is None:
                 raise ParameterError(f"cables.{name}: required (use NeckParams.default)")
-        _check_array(self, "k", None, positive=True)
-        _check_array(self, "lam", None, non_negative=True)
-        _check_array(self, "c_a", None, non_negative=True)
+        check_array(self, "k", None, positive=True)
+        check_array(self, "lam", None, non_negative=True)
+        check_array(self, "c_a", None, non_negative=True)
         if self.k_linear is not None:
-            _check_array(self, "k_linear", None, positive=True)
-        _check_positive(self, "t_cap")
+            check_array(self, "k_linear", None, positive=True)
+        check_positive(self, "t_cap")
         # Lengths are checked against n_joints by NeckParams, which names the array that is wrong.
 
 
@@ -249,7 +188,7 @@ class Control:
                               "paper §5.3: damping used in the elongation estimator of eq (58)")
 
     def __post_init__(self):
-        _check_positive(self, "rate_hz", "omega", "c_a_estimator")
+        check_positive(self, "rate_hz", "omega", "c_a_estimator")
 
     @property
     def gains(self) -> tuple[float, float, float]:
@@ -267,9 +206,9 @@ class Sensors:
     camera_noise: float = _f(math.radians(1.0), "rad", "paper §4.2: image-processing precision about 1 deg")
 
     def __post_init__(self):
-        _check_integer(self, "encoder_counts_per_turn", 1)
-        _check_positive(self, "camera_rate_hz")
-        _check_positive(self, "camera_noise", strict=False)
+        check_integer(self, "encoder_counts_per_turn", 1)
+        check_positive(self, "camera_rate_hz")
+        check_positive(self, "camera_noise", strict=False)
 
     @property
     def encoder_resolution(self) -> float:
@@ -337,7 +276,7 @@ class CableRoute:
             if p not in PASS_ROUTINGS:
                 raise ParameterError(f"{where}.passes[{i}]: joint {i + 1} must be 'strut' or 'side', got {p!r}")
         e = self.ends_at
-        if not _is_integer(e) or e < 1:
+        if not is_integer(e) or e < 1:
             raise ParameterError(f"{where}.ends_at: must be a joint number >= 1, got {e!r}")
         e = int(e)
         if len(passes) >= e:
@@ -358,7 +297,7 @@ class CableRoute:
             raise ParameterError(f"{where}.extra_turns: expected {len(passes)} values (one per passed joint), "
                                  f"got {len(turns)}")
         for i, (t, p) in enumerate(zip(turns, passes)):
-            if not _is_integer(t):
+            if not is_integer(t):
                 raise ParameterError(f"{where}.extra_turns[{i}]: must be an integer, got {t!r}")
             if p == "side" and t != 1:
                 raise ParameterError(
@@ -371,7 +310,7 @@ class CableRoute:
                     f"turns there are not modelled (they only add a constant length), got {t!r}")
         row = self.row
         if row is not None:
-            if not _is_integer(row):
+            if not is_integer(row):
                 raise ParameterError(f"{where}.row: must be an integer, got {row!r}")
             if row == 0:
                 raise ParameterError(f"{where}.row: row 0 is the plane of the bars, which has no pulleys; "
