@@ -49,8 +49,8 @@ import numpy as np
 
 from neck_sim.analytic.geometry import _joint_local, check_alpha, forward_kinematics
 from neck_sim.atomic import atomic_write_bytes
-from neck_sim.params import (SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_SIDE, SEG_RIGHT_STRUT,
-                             NeckParams)
+from neck_sim.params import NeckParams
+from neck_sim.routing import SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_SIDE, SEG_RIGHT_STRUT
 
 __all__ = ["DEFAULT_TIMESTEP", "Layout", "build_xml", "build_model", "write_xml", "ModelIndex",
            "model_index", "pose_qpos", "wrap_arcs", "committed_xml_path", "helper_joints",

@@ -31,17 +31,24 @@ Example::
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
 import numpy as np
 
-__all__ = ["ParameterError", "finite", "indices", "per_item", "is_integer", "check_number", "check_integer",
+__all__ = ["ParameterError", "param_field", "finite", "indices", "per_item", "is_integer", "check_number", "check_integer",
            "check_positive", "check_array"]
 
 
 class ParameterError(ValueError):
     """An invalid parameter value; the message names the offending field."""
+
+
+def param_field(default: Any, unit: str, source: str, **kw: Any) -> Any:
+    """A dataclass field carrying its unit and its source in ``metadata`` (what
+    :func:`neck_sim.params.describe` prints): every parameter is declared through it."""
+    return dataclasses.field(default=default, metadata={"unit": unit, "source": source}, **kw)
 
 
 # ----------------------------------------------------------------------------- values by name
