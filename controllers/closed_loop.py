@@ -31,15 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from numba import types
-from numba.extending import intrinsic
-
 from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, control_rows,
                                         output_slices, reference_table, step_error)
 from controllers.trajectories import Trajectory
 from neck_sim.jit import kernel
 from neck_sim.live import active as active_live_view
-from neck_sim.plant import _DISPATCH, Plant, PlantBatch, clip_forces, delayed_controls, truth_columns
+from neck_sim.batch import PlantBatch, clip_forces, delayed_controls, truth_columns
+from neck_sim.native import DISPATCH, call_c
+from neck_sim.plant import Plant
 from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "LOCKSTEP_GROUP", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
@@ -154,24 +153,6 @@ def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, cam
         duration=float(t[-1] - t[0]) if len(t) else 0.0)
 
 
-@intrinsic
-def _call_c(typingctx, address, args):
-    """``int f(args...)`` called at ``address`` (an integer): a C function pointer that numba's cache
-    can keep (an address baked into the code as a ctypes global would not survive the process).
-    ``args`` a tuple of int32 (C int) and int64 (pointers, passed as 64-bit integers)."""
-    if not (isinstance(address, types.Integer) and isinstance(args, types.BaseTuple)
-            and all(t in (types.int32, types.int64) for t in args.types)):
-        return None
-
-    def codegen(context, builder, signature, llargs):
-        from llvmlite import ir
-        values = [builder.extract_value(llargs[1], i) for i in range(len(args.types))]
-        fnty = ir.FunctionType(ir.IntType(32), [v.type for v in values])
-        return builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), values)
-
-    return types.int32(address, args), codegen
-
-
 @kernel
 def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth, values, flags, const, cables,
                  linkage, geometry, cases, Z, tables, outs, status, alive, fcol, fmax, forces, delay_line, step_fn,
@@ -214,7 +195,7 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
         clip_forces(outs[:, k, fcol:fcol + m], fmax, forces)
         if delayed:
             delayed_controls(delay_line[0], forces, *delay_line[1:])
-        fatal = _call_c(step_fn, step_args)
+        fatal = call_c(step_fn, step_args)
         if fatal != 0:
             return k, 2, fatal
     return k1, 0, 0
@@ -380,11 +361,11 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
         bar = tqdm(total=steps, desc=desc, unit="step", disable=not progress, mininterval=0.5)
         fused = FUSE_PERIODS and compiled and not alone and batch is not None
         if fused:
-            step_fn, step_args = batch.native_step()
-            kernel_args = (batch.encoders(), batch.out, theta, rec_theta, rec_truth, state.values, state.flags,
+            step = batch.fused_step()
+            kernel_args = (step.encoders, step.out, theta, rec_theta, rec_truth, state.values, state.flags,
                            state.const, state.cables, state.linkage, state.geometry, state.cases, state.Z, tables,
-                           outs, status, alive, columns["forces"].start, batch._fmax, batch.forces,
-                           batch.delay_line(), step_fn, step_args)
+                           outs, status, alive, columns["forces"].start, step.f_max, step.forces,
+                           step.delay_line, step.address, step.args)
         k = 0
         while k < steps:
             if live is not None and k - shown[0] >= live_every and alive[0]:
@@ -394,12 +375,12 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
             if fused:
                 # the quiet periods in one call, and the next one (an event) recorded and controlled
                 quiet = min(batch.quiet_periods(), steps - k, _MAX_FUSED)
-                previous = _DISPATCH.enter("native") if quiet else None     # quiet periods: native only
+                previous = DISPATCH.enter("native") if quiet else None     # quiet periods: native only
                 try:
                     k_end, stage, fatal = _run_periods(k, k + quiet, int(k + quiet < steps), *kernel_args)
                 finally:
                     if quiet:
-                        _DISPATCH.leave(previous)
+                        DISPATCH.leave(previous)
                 if fatal < 0:
                     raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
                 batch.ran_periods(k_end - k + (stage == 2))
@@ -439,7 +420,7 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                 if batch is not None:
                     for j in batch.step(forces[rows, k]):
                         fail(batched[j], t_of(batched[j], k), batch.errors[j])
-                    if batch._framed:
+                    if batch.framed:
                         for j, frame in enumerate(batch.frames):
                             if frame is not None:
                                 cameras[batched[j]][0].append(frame[0])
