@@ -217,6 +217,11 @@ class PlantBatch:
             s.hist = self.hist[i, : self._R[i]].copy()
             s.frame, s.owner = self.frames[i], None
 
+    def __del__(self) -> None:
+        # a batch dropped open hands the state back too (the plants then go on from where it left them)
+        if getattr(self, "_open", False):
+            self.close()
+
     def __enter__(self) -> "PlantBatch":
         return self
 
