@@ -117,7 +117,7 @@ def _with_integrator(xml: str, integrator: str) -> str:
 
 
 class Plant:
-    """The simulated neck (interfaces.md, ``neck_sim.plant``).
+    """The simulated neck.
 
     ``Plant(params=None, effects=None, seed=0, timestep=None, *, rigid_cables=False,
     backend=None, integrator=None)``: ``params`` are the plant's constants (default
