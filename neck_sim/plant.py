@@ -142,6 +142,8 @@ class Plant:
         self.true_params = self.effects.true_params(self.params)
         self.seed = int(seed)
         self.rigid_cables = bool(rigid_cables)
+        self.integrator = integrator
+        """The fixed MuJoCo integrator (one of :data:`INTEGRATORS`), or None: chosen from c_a."""
         route_mujoco_warnings()
         if self.rigid_cables:
             moot = [e.name for e in self.effects.active() if e.acts_on_cable_law]
@@ -266,11 +268,6 @@ class Plant:
         holder = state.holder()
         return state.k if holder is None else int(holder.k[state.row])
 
-    @property
-    def integrator(self) -> str:
-        """MuJoCo's integrator of this plant, as the compiled model has it: ``implicitfast``,
-        ``implicit`` or ``discrete``."""
-        return mujoco.mjtIntegrator(self.model.opt.integrator).name.removeprefix("mjINT_").lower()
 
     @property
     def backend(self) -> str:

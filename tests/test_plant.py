@@ -1,4 +1,4 @@
-"""The simulated prototype: API, sensors, callbacks (process-global), dynamics (issue 3 item 5), effects."""
+"""The simulated prototype: API, sensors, callbacks (process-global), dynamics (against the analytic model), effects."""
 
 import ctypes
 import gc

@@ -1,5 +1,5 @@
 """PlantBatch (K plants per control period in one native call) against the stepping sequence of
-the plant before it existed, written here from MuJoCo's own Python calls (issue 13 item 4)."""
+the plant before it existed, written here from MuJoCo's own Python calls."""
 
 import math
 
