@@ -89,18 +89,11 @@ class PlantSpec:
 
     @classmethod
     def of(cls, plant) -> "PlantSpec":
-        """The spec of a built plant (its timestep resolved, its backend as it runs).  Its
-        integrator is None when it is the one the default choice makes for this plant
-        (:func:`neck_sim.mjcf.integrator_for`), so a plant built without one records none."""
-        from neck_sim.mjcf import integrator_for
-
-        integrator = getattr(plant, "integrator", None)
-        default = integrator_for(getattr(plant, "true_params", plant.params), plant.timestep, plant.rigid_cables)
-        if integrator == default:
-            integrator = None
+        """The spec of a built plant (its timestep resolved, its backend as it runs, its
+        integrator as it was asked for: None when the plant chose it from c_a)."""
         return cls(plant.params, plant.effects, seed=plant.seed, timestep=plant.timestep,
                    rigid_cables=plant.rigid_cables, backend=getattr(plant, "backend", None),
-                   integrator=integrator)
+                   integrator=getattr(plant, "integrator", None))
 
     def replace(self, **changes) -> "PlantSpec":
         """A copy with fields replaced (``spec.replace(seed=2)``)."""
