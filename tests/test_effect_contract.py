@@ -24,8 +24,8 @@ from neck_sim import effects as E
 from neck_sim import plant as P
 from neck_sim.params import default_params, example_params
 
-from identification.candidates import FitContext
-from identification.measured import MeasuredData
+from identification.diagnosis.candidates import FitContext
+from identification.diagnosis.measured import MeasuredData
 
 EFFECTS = E.registered()
 MOTOR = [c for c in EFFECTS if c.kind == "motor"]

@@ -106,7 +106,7 @@ def _leader(verdict) -> str:
 
 
 def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, capsys):
-    from identification.candidates import plant_model
+    from identification.diagnosis.candidates import plant_model
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from neck_sim.cli import main
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, Term
+from identification.diagnosis.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import search_shape, shape_grid
 from identification.diagnosis.statistics import block_scores, in_band, score

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.candidates import Fit, MeasuredData, elongation_offsets
+from identification.diagnosis.candidates import Fit, MeasuredData, elongation_offsets
 from neck_sim.analytic.dynamics import cable_stiffness, static_elongation
 
 

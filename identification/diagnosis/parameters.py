@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, Term
+from identification.diagnosis.candidates import Fit, Term
 from identification.diagnosis.candidate import CandidateScore
 from identification.diagnosis.fitting import StepContext
 from identification.diagnosis.statistics import clearly_nonzero, score

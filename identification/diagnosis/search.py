@@ -8,7 +8,7 @@ from itertools import product
 import numpy as np
 from scipy import optimize
 
-from identification.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
+from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split

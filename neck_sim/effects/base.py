@@ -21,7 +21,7 @@ effect overrides (the defaults do nothing):
 * ``setup_mujoco(model, data, index)`` -- edit MuJoCo's compiled model or data directly
   (``dof_frictionloss``, ``qfrc_applied``, ...): MuJoCo-native mechanisms; called after every reset.
 
-**The diagnosis** (:mod:`identification.candidates` and the diagnosis pipeline) fits the effect as
+**The diagnosis** (:mod:`identification.diagnosis.candidates` and the diagnosis pipeline) fits the effect as
 regressor columns, linear in the effect's magnitudes once its shape parameters are fixed:
 
 * ``columns`` -- the :class:`Column` groups it adds to the parameter vector (symbol, unit, one per
@@ -286,7 +286,7 @@ class Effect:
     @classmethod
     def design(cls, data, shape: dict, context) -> Design:
         """Regressor columns for one fit on the diagnosis' ``data`` (a
-        :class:`identification.candidates.MeasuredData`); ``context`` carries the fit's current
+        :class:`identification.diagnosis.candidates.MeasuredData`); ``context`` carries the fit's current
         elongations ``x`` (S, C) m and tension estimates (``tension_fast`` (T, C), ``tension`` (S, C) N)."""
         S, n, C = data.S, data.n, data.C
         return Design(np.zeros((S, n, 0)), np.zeros((S, C, 0)))
@@ -299,7 +299,7 @@ class Effect:
     @classmethod
     def fit_camera_shift(cls, shape: dict) -> float:
         """s by which this term says the camera lags the encoders: the fit reads the camera's
-        joint angles that much later (:meth:`identification.measured.MeasuredData.camera_shifted`)."""
+        joint angles that much later (:meth:`identification.diagnosis.measured.MeasuredData.camera_shifted`)."""
         return 0.0
 
     @classmethod

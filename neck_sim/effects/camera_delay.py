@@ -17,7 +17,7 @@ class CameraDelay(Effect):
 
     The diagnosis fits it as a shape: every camera-side quantity (alpha, Z, the linkage torque,
     the elongations of eq 27) is read ``delay`` later
-    (:meth:`identification.measured.MeasuredData.camera_shifted`); resolution from the profile
+    (:meth:`identification.diagnosis.measured.MeasuredData.camera_shifted`); resolution from the profile
     of the training score, well below one 33 ms frame.
     """
 

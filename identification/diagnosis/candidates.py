@@ -31,7 +31,7 @@ stiffness, so it minimises elongation errors.  A rigid model says x_c = 0: its c
 x_c itself (m) and it has no cable-block parameters.  The elongation form makes rigid and elastic
 models comparable.
 
-**Parallel filtering** (:mod:`identification.measured`): motor-side regressors pass through the
+**Parallel filtering** (:mod:`identification.diagnosis.measured`): motor-side regressors pass through the
 observations' filter chain.  Regressors that need the tension (pulley friction, lambda, pretension) use the previous fit's
 tension estimate, iterated to convergence (three passes).
 
@@ -62,7 +62,7 @@ from neck_sim.effects import Effect, Effects
 from neck_sim.params import NeckParams
 
 from identification.least_squares import solve_weighted
-from identification.measured import MeasuredData
+from identification.diagnosis.measured import MeasuredData
 
 __all__ = ["effect_names", "grid_of", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
            "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "elongation_offsets", "EFFECTS", "REQUIRES",

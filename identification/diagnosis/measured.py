@@ -1,7 +1,7 @@
 """The measured signals of one log, prepared once for every model fit of the diagnosis.
 
 Observations and regressors on the slow grid of :func:`identification.preprocessing.prepare`
-(the two blocks of equations are described in :mod:`identification.candidates`).
+(the two blocks of equations are described in :mod:`identification.diagnosis.candidates`).
 
 **Parallel filtering.** Motor-side regressors are nonlinear in the motor speed (a sign-like
 friction), so they are computed at the control rate from the encoders' speed (filtered at the motor
