@@ -53,8 +53,6 @@ def register(cls: type[EffectColumns]) -> type[EffectColumns]:
     if not (isinstance(cls, type) and issubclass(cls, EffectColumns)):
         raise TypeError(f"columns.register: expected a subclass of EffectColumns, got {cls!r}")
     effect = effect_registry.get(cls.effect)        # ValueError naming the known effects
-    if cls.effect in _REGISTRY and _REGISTRY[cls.effect] is not cls:
-        raise ValueError(f"columns.register: {cls.effect} has columns already ({_REGISTRY[cls.effect].__name__})")
     if issubclass(effect, effect_registry.MotorEffect) != issubclass(cls, MotorColumns):
         raise TypeError(f"columns.register: {cls.__name__} must subclass MotorColumns exactly when "
                         f"{effect.__name__} is a MotorEffect")
@@ -64,6 +62,8 @@ def register(cls: type[EffectColumns]) -> type[EffectColumns]:
     for sh in cls.shapes:
         if not isinstance(sh, Shape):
             raise TypeError(f"columns.register: {cls.__name__}.shapes must hold Shape objects, got {sh!r}")
+    if cls.effect in _REGISTRY and _REGISTRY[cls.effect] is not cls:
+        raise ValueError(f"columns.register: {cls.effect} has columns already ({_REGISTRY[cls.effect].__name__})")
     _REGISTRY[cls.effect] = cls
     return cls
 
