@@ -16,7 +16,7 @@ and the fitted magnitude.  Prints Markdown:
 * false alarms on the noise-only controls;
 * the time of a whole diagnosis of a 60 s log on one core (``--timing-only`` or by default).
 
-The blind logs are simulated and diagnosed on a campaign executor (:mod:`controllers.campaign`):
+The blind logs are simulated and diagnosed on a campaign executor (:mod:`neck_sim.campaign`):
 local worker processes (``--workers``), or a Dask cluster (``--cluster tcp://HOST:PORT``).
 
 Also: two effects hidden at once (``--pairs default``: the generator's ``PAIRS``, two forward
@@ -378,7 +378,7 @@ def main(argv=None) -> int:
             write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
                        commit=args.commit)
         return 0
-    from controllers.campaign import ExecutorSpec, run_campaign
+    from neck_sim.campaign import ExecutorSpec, run_campaign
 
     seeds = [int(x) for x in args.seeds.split(",")]
     levels = sorted(float(x) for x in args.levels.split(","))

@@ -147,7 +147,7 @@ def main(argv=None) -> int:
             from bench_detection import write_docs
             write_docs(args.docs, text, command, "bench_false_alarms", commit=args.commit)
         return 0
-    from controllers.campaign import ExecutorSpec, run_campaign
+    from neck_sim.campaign import ExecutorSpec, run_campaign
 
     seeds = [int(x) for x in args.seeds.split(",")]
     kinds = args.only.split(",")

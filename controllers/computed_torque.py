@@ -38,7 +38,6 @@ import numpy as np
 from controllers.estimators import CableModel, ElongationEstimator, estimated_tension
 from controllers.tension import (TensionInfeasibleError, distribute_kernel, infeasible_message,
                                  tension_lower_bounds)
-from controllers.trajectories import TrajectorySample
 from neck_sim.analytic.cables import cable_kinematics, transmission_kernel, transmission_matrix
 from neck_sim.analytic.dynamics import (_euler_elongation, _stiffness, arctan_friction, linkage_constants,
                                        linkage_kernel, motor_friction)
@@ -46,6 +45,7 @@ from neck_sim.analytic.estimation import UnreachableError, pinv_increment_kernel
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.jit import kernel
 from neck_sim.params import NeckParams, default_params
+from neck_sim.trajectory import TrajectorySample
 
 __all__ = ["ControlLaw", "OutsideWorkspaceError", "MotorReference", "ControlStep", "ComputedTorqueController",
            "reference_table", "output_slices", "ControllerState", "advance", "step_error",

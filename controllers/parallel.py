@@ -1,4 +1,4 @@
-"""Run independent closed-loop experiments on a campaign executor (:mod:`controllers.campaign`).
+"""Run independent closed-loop experiments on a campaign executor (:mod:`neck_sim.campaign`).
 
 Each run is described by a picklable :class:`RunSpec` (plant, controller, trajectory by name) and
 built inside its worker: MuJoCo models, callbacks and controllers never cross process boundaries.
@@ -14,7 +14,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
-from controllers.campaign import ExecutorSpec, map_jobs, run_campaign, run_in_scratch, write_shipped
+from neck_sim.campaign import ExecutorSpec, map_jobs, run_campaign, run_in_scratch, write_shipped
 from controllers.closed_loop import RunResult, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import make_trajectory
@@ -65,7 +65,7 @@ def run_all(specs: Sequence[RunSpec], executor: ExecutorSpec | cf.Executor | Non
             progress: bool = True, desc: str = "closed-loop runs") -> list[RunResult]:
     """Run every spec; results in spec order.
 
-    ``executor``: where (an :class:`~controllers.campaign.ExecutorSpec`, default one local process
+    ``executor``: where (an :class:`~neck_sim.campaign.ExecutorSpec`, default one local process
     per core; an executor already open; or None: serially here, with per-step progress).  A
     failing run raises ``RuntimeError`` naming the run's label.
     """

@@ -118,7 +118,7 @@ def make_run_trajectory(name: str | None, params: NeckParams, controller: str, d
         return rp.shapes_tour(params, duration_scale)
     if name == "identification":
         return rp.excitation_path(params, duration_scale)
-    from neck_sim.trajectory import make_trajectory as joint_trajectory
+    from neck_sim.trajectory import scaled_trajectory as joint_trajectory
     traj = joint_trajectory(name, params, duration_scale)
     traj.check_workspace(params)
     rp.check_holdable(traj, params)

@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from controllers.computed_torque import ComputedTorqueController, ControlLaw
 from controllers.tension import TensionInfeasibleError, distribute_tensions
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import (HOLD_TIME, MOVE_TIME, TRAJECTORIES, Trajectory, TrajectorySample,
-                                 control_test_trajectory, cycloidal_path, identification_trajectory)
-from neck_sim.trajectory import make_trajectory as _make_trajectory
+                                 control_test_trajectory, cycloidal_path, identification_trajectory,
+                                 scaled_trajectory)
 
 __all__ = ["MOVE_TIME", "HOLD_TIME", "TrajectorySample", "Trajectory", "cycloidal_path", "reference_feedforward",
            "control_test_trajectory", "identification_trajectory", "TRAJECTORIES", "make_trajectory",
@@ -39,8 +40,6 @@ def feedforward_forces(trajectory: Trajectory, params: NeckParams, sample_dt: fl
     without clipping, every ``sample_dt`` s.  Raises TensionInfeasibleError where no positive
     forces exist.
     """
-    from controllers.computed_torque import ComputedTorqueController, ControlLaw   # it imports this module
-
     ctrl = ComputedTorqueController(params, ControlLaw.FRICTION)
     t = np.arange(0.0, trajectory.duration + 0.5 * sample_dt, sample_dt)
     return reference_feedforward(ctrl.motor_reference(trajectory.sample(t)), params)[1]
@@ -69,7 +68,7 @@ def workspace_amplitude(name: str, params: NeckParams, duration_scale: float = 1
 
     def fits(s: float) -> bool:
         # s = 0 stands for the straight pose held, which every trajectory starts from
-        traj = _make_trajectory(name, params, duration_scale, amplitude=max(s, 1e-9))
+        traj = scaled_trajectory(name, params, duration_scale, amplitude=max(s, 1e-9))
         try:
             return float(feedforward_forces(traj, params).max()) <= limit
         except TensionInfeasibleError:
@@ -93,10 +92,8 @@ def make_trajectory(name: str, params: NeckParams, duration_scale: float = 1.0,
     angles times ``amplitude`` (default :func:`workspace_amplitude`: 1 for the paper's neck,
     smaller for a neck too long to follow the paper's angles within f_max).
 
-    A scaled trajectory is named ``"<name> x<amplitude>"`` so that logs and tables say so.
+    A scaled trajectory is named ``"<name> x<amplitude>"`` (:func:`neck_sim.trajectory.scaled_trajectory`)
+    so that logs and tables say so.
     """
     s = workspace_amplitude(name, params, duration_scale) if amplitude is None else amplitude
-    traj = _make_trajectory(name, params, duration_scale, amplitude=s)
-    if s != 1.0:
-        traj = Trajectory(traj.times, traj.poses, f"{name} x{s:.2f}")
-    return traj
+    return scaled_trajectory(name, params, duration_scale, amplitude=s)

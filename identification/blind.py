@@ -224,9 +224,9 @@ def make_case(name: str, seed: int, path, *, level: float = 1.0, trajectory=None
 
 def make_cases(jobs, directory, executor=None, *, progress: bool = True, write_truth: bool = False) -> list:
     """[(case, log path)] of :func:`make_case` for each job ``(name, seed, level)``, generated on a
-    campaign executor (:func:`controllers.campaign.run_campaign`: an ``ExecutorSpec``, an open
+    campaign executor (:func:`neck_sim.campaign.run_campaign`: an ``ExecutorSpec``, an open
     executor, or None for serially here); logs land in ``directory`` as ``NAME_SEED_LEVEL.mcap``."""
-    from controllers.campaign import run_campaign, write_shipped
+    from neck_sim.campaign import run_campaign, write_shipped
 
     jobs = [(str(name), int(seed), float(level), bool(write_truth)) for name, seed, level in jobs]
     names = [f"{name.replace(':', '_')}_{seed}_{level:g}.mcap" for name, seed, level, _ in jobs]
@@ -236,7 +236,7 @@ def make_cases(jobs, directory, executor=None, *, progress: bool = True, write_t
 
 def _make_case_shipped(job):
     """On a worker: (case, log bytes) of one :func:`make_cases` job."""
-    from controllers.campaign import run_in_scratch
+    from neck_sim.campaign import run_in_scratch
 
     name, seed, level, write_truth = job
     return run_in_scratch(_make_case_at, "case.mcap", name, seed, level, write_truth)

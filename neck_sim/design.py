@@ -60,7 +60,7 @@ def routing_strategies(base: NeckParams, n_cables: int = 4) -> list[Strategy]:
     With more than four cables the extra pairs split the neck into more segments (segmented,
     nested) or join the head pairs (doubled).
     """
-    from neck_sim.params import CableRoute, Routing
+    from neck_sim.routing import CableRoute, Routing
 
     n = base.n_joints
     if n_cables < 4 or n_cables % 2:

@@ -60,7 +60,7 @@ from dm_env import specs
 from neck_sim.effects import Effects
 from neck_sim.params import NeckParams, default_params
 from neck_sim.plant import Plant, Truth
-from neck_sim.trajectory import HOLD_TIME, MOVE_TIME, Trajectory, cycloidal_path, make_trajectory
+from neck_sim.trajectory import HOLD_TIME, MOVE_TIME, Trajectory, cycloidal_path, scaled_trajectory
 
 __all__ = ["load", "NeckPhysics", "TrackingTask", "NeckEnvironment", "OPTIONS", "RANDOM_DURATION",
            "RANDOM_TARGET_RANGE", "REWARD_TOLERANCE", "REWARD_MARGIN"]
@@ -423,8 +423,8 @@ def load(n_joints: int = 3, seed: int | None = None, **options) -> NeckEnvironme
                 raise ValueError(f"target_range: {math.degrees(kw['target_range']):g} deg reaches the workspace limit "
                                  f"{math.degrees(params.geometry.alpha_max):g} deg")
         else:
-            trajectory = make_trajectory(trajectory, params, _positive("duration_scale",
-                                                                       options.get("duration_scale", 1.0)))
+            trajectory = scaled_trajectory(trajectory, params, _positive("duration_scale",
+                                                                         options.get("duration_scale", 1.0)))
     if not isinstance(trajectory, str):
         _check_trajectory(trajectory, params)
         duration = _positive("time_limit", options.get("time_limit", trajectory.duration))

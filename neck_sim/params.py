@@ -1,7 +1,8 @@
 """Every physical constant of the neck, with its unit and its source, in one place.
 
 Parameters are frozen dataclasses grouped by concept (geometry, actuation, springs, inertia,
-friction, cables, control, sensors, routing) under one :class:`NeckParams`.  Per-joint arrays have
+friction, cables, control, sensors) under one :class:`NeckParams`, with the neck's cable routing
+(:class:`neck_sim.routing.Routing`).  Per-joint arrays have
 length N (``n_joints``) and per-cable arrays length m (``n_cables``), in the order of
 ``routing.cables``; the default routing is the paper's (m = N + 1: cables c1..cN pull on the right,
 the last one is the long left cable).  Arrays are stored as tuples of floats so that parameter sets
@@ -16,37 +17,23 @@ Sources: "paper" is the paper cited in ``README.md`` (Table/section numbers are 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any, Mapping
 
-import numpy as np
-
 from neck_sim.atomic import atomic_write_bytes
+from neck_sim.native import MAX_CABLES   # most joints and cables: the arrays of the compiled callback
+from neck_sim.routing import Routing, mirrored_paper_routing, mixed4_routing, neck10x4_routing, paper_routing
+from neck_sim.validation import ParameterError, check_array, check_integer, check_positive, param_field as _f
 
 __all__ = [
     "Geometry", "Actuation", "Springs", "Inertia", "Friction", "Cables", "Control", "Sensors",
-    "NeckParams", "ParameterError", "MAX_CABLES", "default_params", "describe", "load", "save",
-    "to_dict", "from_dict", "CableRoute", "Routing", "paper_routing", "neck10x4_routing",
-    "mirrored_paper_routing", "EXAMPLES", "example_params",
+    "NeckParams", "ParameterError", "default_params", "describe", "load", "save", "to_dict", "from_dict",
+    "implausible_values", "EXAMPLES", "example_params",
 ]
-
-
-class ParameterError(ValueError):
-    """An invalid parameter value; the message names the offending field."""
-
-
-MAX_CABLES = 32
-"""Most joints and most cables a neck may have: the arrays of the plant's compiled callback
-(``NECK_MAXC`` in ``neck_sim/native/plant_callback.c``; a test holds the two equal)."""
-
-
-def _f(default, unit: str, source: str, **kw):
-    return field(default=default, metadata={"unit": unit, "source": source}, **kw)
 
 
 def _per_joint(n: int, first: float, rest: float) -> tuple[float, ...]:
@@ -66,60 +53,6 @@ def _per_cable(sides: tuple[str, ...], right: tuple[float, ...], left: float) ->
     return tuple(out)
 
 
-def _check_number(obj, name: str) -> float:
-    """The field as a float, or ParameterError when it is not a number (a string, a bool, a list)."""
-    v = getattr(obj, name)
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be a number, got {v!r} "
-                             f"({type(v).__name__})")
-    object.__setattr__(obj, name, float(v))
-    return float(v)
-
-
-def _is_integer(v) -> bool:
-    """A whole number (an int, or a finite float without fraction); bools and strings are not."""
-    return (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-            and math.isfinite(v) and int(v) == v)
-
-
-def _check_integer(obj, name: str, minimum: int, maximum: int | None = None) -> None:
-    v = getattr(obj, name)
-    if not (_is_integer(v) and v >= minimum and (maximum is None or v <= maximum)):
-        limit = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be an integer {limit}, got {v!r}")
-    object.__setattr__(obj, name, int(v))
-
-
-def _check_positive(obj, *names: str, strict: bool = True) -> None:
-    for name in names:
-        v = _check_number(obj, name)
-        bad = (not math.isfinite(v)) or (v <= 0 if strict else v < 0)
-        if bad:
-            kind = "positive" if strict else "non-negative"
-            raise ParameterError(f"{type(obj).__name__.lower()}.{name}: must be finite and {kind}, got {v!r}")
-
-
-def _check_array(obj, name: str, length: int | None, *, positive: bool = False,
-                 non_negative: bool = False) -> None:
-    v = getattr(obj, name)
-    try:
-        arr = np.asarray(v, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: not a list of numbers ({exc})") from None
-    if arr.ndim != 1:
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: expected a flat list, got shape {arr.shape}")
-    if length is not None and arr.shape[0] != length:
-        raise ParameterError(
-            f"{type(obj).__name__.lower()}.{name}: expected {length} values, got {arr.shape[0]}")
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: contains NaN or infinity")
-    if positive and np.any(arr <= 0):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: all values must be > 0, got {tuple(arr)}")
-    if non_negative and np.any(arr < 0):
-        raise ParameterError(f"{type(obj).__name__.lower()}.{name}: all values must be >= 0, got {tuple(arr)}")
-    object.__setattr__(obj, name, tuple(float(x) for x in arr))
-
-
 @dataclass(frozen=True)
 class Geometry:
     """X-joint and pulley geometry (metres, radians)."""
@@ -132,9 +65,9 @@ class Geometry:
                           "assumption: joint range |alpha| < pi/2, the range of the paper's §5.6 study")
 
     def __post_init__(self):
-        _check_integer(self, "n_joints", 1, MAX_CABLES)
-        _check_positive(self, "b", "L", "alpha_max")
-        _check_positive(self, "r", strict=False)
+        check_integer(self, "n_joints", 1, MAX_CABLES)
+        check_positive(self, "b", "L", "alpha_max")
+        check_positive(self, "r", strict=False)
         if self.L <= self.b:
             raise ParameterError(f"geometry.L: the diagonal L = {self.L} m must be longer than the bar b = {self.b} m")
         if not self.alpha_max < math.pi:
@@ -156,8 +89,8 @@ class Actuation:
     t_min: float = _f(8.5, "N", "paper §6.2: minimal cable tension t_min = 8.5 N")
 
     def __post_init__(self):
-        _check_positive(self, "r_d", "R", "I_a", "f_max")
-        _check_positive(self, "f_min", "t_min", strict=False)
+        check_positive(self, "r_d", "R", "I_a", "f_max")
+        check_positive(self, "f_min", "t_min", strict=False)
         for name in ("f_min", "t_min"):
             if getattr(self, name) > self.f_max:
                 raise ParameterError(f"actuation.{name}: {getattr(self, name)} N exceeds f_max = {self.f_max} N")
@@ -180,8 +113,8 @@ class Springs:
     def __post_init__(self):
         if self.stiffness is None:
             raise ParameterError("springs.stiffness: required (use NeckParams.default)")
-        _check_array(self, "stiffness", None, non_negative=True)
-        _check_positive(self, "rest_length")
+        check_array(self, "stiffness", None, non_negative=True)
+        check_positive(self, "rest_length")
 
 
 @dataclass(frozen=True)
@@ -195,8 +128,8 @@ class Inertia:
 
     def __post_init__(self):
         # Moving bars need mass: a massless body has no inertia for MuJoCo (nor for M of eq 24).
-        _check_positive(self, "bar_mass", "diagonal_mass")
-        _check_positive(self, "gravity", "payload_mass", strict=False)
+        check_positive(self, "bar_mass", "diagonal_mass")
+        check_positive(self, "gravity", "payload_mass", strict=False)
 
 
 @dataclass(frozen=True)
@@ -210,8 +143,8 @@ class Friction:
     def __post_init__(self):
         if self.f_s is None:
             raise ParameterError("friction.f_s: required (use NeckParams.default)")
-        _check_array(self, "f_s", None, non_negative=True)
-        _check_positive(self, "c_s")
+        check_array(self, "f_s", None, non_negative=True)
+        check_positive(self, "c_s")
 
 
 @dataclass(frozen=True)
@@ -230,12 +163,12 @@ class Cables:
         for name in ("k", "lam", "c_a"):
             if getattr(self, name) is None:
                 raise ParameterError(f"cables.{name}: required (use NeckParams.default)")
-        _check_array(self, "k", None, positive=True)
-        _check_array(self, "lam", None, non_negative=True)
-        _check_array(self, "c_a", None, non_negative=True)
+        check_array(self, "k", None, positive=True)
+        check_array(self, "lam", None, non_negative=True)
+        check_array(self, "c_a", None, non_negative=True)
         if self.k_linear is not None:
-            _check_array(self, "k_linear", None, positive=True)
-        _check_positive(self, "t_cap")
+            check_array(self, "k_linear", None, positive=True)
+        check_positive(self, "t_cap")
         # Lengths are checked against n_joints by NeckParams, which names the array that is wrong.
 
 
@@ -249,7 +182,7 @@ class Control:
                               "paper §5.3: damping used in the elongation estimator of eq (58)")
 
     def __post_init__(self):
-        _check_positive(self, "rate_hz", "omega", "c_a_estimator")
+        check_positive(self, "rate_hz", "omega", "c_a_estimator")
 
     @property
     def gains(self) -> tuple[float, float, float]:
@@ -267,285 +200,14 @@ class Sensors:
     camera_noise: float = _f(math.radians(1.0), "rad", "paper §4.2: image-processing precision about 1 deg")
 
     def __post_init__(self):
-        _check_integer(self, "encoder_counts_per_turn", 1)
-        _check_positive(self, "camera_rate_hz")
-        _check_positive(self, "camera_noise", strict=False)
+        check_integer(self, "encoder_counts_per_turn", 1)
+        check_positive(self, "camera_rate_hz")
+        check_positive(self, "camera_noise", strict=False)
 
     @property
     def encoder_resolution(self) -> float:
         """One encoder count in radians at the motor shaft."""
         return 2 * math.pi / self.encoder_counts_per_turn
-
-
-# ------------------------------------------------------------------------------------- routing
-
-SIDES = ("left", "right")
-PASS_ROUTINGS = ("strut", "side")
-
-# Segment kinds: what one cable does on one X-joint (the paper's cases a-d and their mirror
-# images), compiled into ``Routing.segment_cases`` (m, N).  Their lengths, eqs (3)-(6), and the
-# mirror relations live in :mod:`neck_sim.analytic.cables`.
-SEG_NONE = 0          # the cable does not reach this joint (it ended below)
-SEG_LEFT_END = 1      # case (a): left cable, wraps A_i clockwise, attached at C_i
-SEG_RIGHT_END = 2     # case (b) = mirror of (a): right cable, wraps B_i ccw, attached at D_i
-SEG_LEFT_SIDE = 3     # case (c): left cable up the left side outside the pulleys (extra turn on C_i)
-SEG_RIGHT_STRUT = 4   # case (d): right cable crossing along the diagonal B->C, then the top bar C->D
-SEG_RIGHT_SIDE = 5    # mirror of (c): right cable up the right side (extra turn on D_i)
-SEG_LEFT_STRUT = 6    # mirror of (d): left cable crossing along the diagonal A->D, then the top bar D->C
-N_SEGMENT_KINDS = 7
-_PASS_KIND = {("left", "side"): SEG_LEFT_SIDE, ("left", "strut"): SEG_LEFT_STRUT,
-              ("right", "side"): SEG_RIGHT_SIDE, ("right", "strut"): SEG_RIGHT_STRUT}
-_END_KIND = {"left": SEG_LEFT_END, "right": SEG_RIGHT_END}
-
-
-@dataclass(frozen=True)
-class CableRoute:
-    """The path of one cable from its motor at the base to its attachment point.
-
-    Every cable leaves its motor under the base bar and wraps the first pulley of its side
-    (A_1 clockwise on the left, B_1 counter-clockwise on the right); it then passes joints
-    1..ends_at-1, each either ``"strut"``-routed (crossing along the diagonal from its side's base
-    corner to the opposite top corner, then back along the top bar: case d and its mirror) or
-    ``"side"``-routed (up its side outside the pulleys: case c and its mirror), and is attached at
-    the top corner of its side of joint ``ends_at`` (C for left, D for right: cases a, b).
-    """
-
-    side: str = _f("right", "-", "which side's pulleys the cable wraps at every base bar: 'left' or 'right'")
-    passes: tuple = _f((), "-", "routing at joints 1..ends_at-1, each 'strut' or 'side'")
-    ends_at: int = _f(1, "-", "joint (1-based) at whose top corner of the cable's side it is attached")
-    extra_turns: tuple | None = _f(None, "turns",
-                                   "extra full turns on the top pulley of each passed joint; a side-routed "
-                                   "pass needs one (paper §2.2: the long cable turns once more on C_1, C_2), a "
-                                   "strut-routed pass none; default from the routing")
-    row: int | None = _f(None, "-", "plane of the cable's pulleys along the hinge axes, in 4 mm steps from the "
-                                    "bars (non-zero); default: right cables 1, 2, ..., left cables -1, -2, ...")
-
-    def _where(self, index: int | None) -> str:
-        return "routing.cables" if index is None else f"routing.cables[{index}]"
-
-    def validated(self, index: int | None = None) -> "CableRoute":
-        """A normalised copy (tuples, ints, default turns) or :class:`ParameterError` naming the field."""
-        where = self._where(index)
-        if self.side not in SIDES:
-            raise ParameterError(f"{where}.side: must be 'left' or 'right', got {self.side!r}")
-        passes = (self.passes,) if isinstance(self.passes, str) else self.passes
-        try:
-            passes = tuple(passes)
-        except TypeError:
-            raise ParameterError(f"{where}.passes: expected a list of 'strut'/'side', got {self.passes!r}") from None
-        for i, p in enumerate(passes):
-            if p not in PASS_ROUTINGS:
-                raise ParameterError(f"{where}.passes[{i}]: joint {i + 1} must be 'strut' or 'side', got {p!r}")
-        e = self.ends_at
-        if not _is_integer(e) or e < 1:
-            raise ParameterError(f"{where}.ends_at: must be a joint number >= 1, got {e!r}")
-        e = int(e)
-        if len(passes) >= e:
-            raise ParameterError(
-                f"{where}.ends_at: the cable ends at joint {e} but passes joints 1..{len(passes)} ({len(passes)} "
-                f"entries in passes): it must end above the last joint it passes (ends_at = {len(passes) + 1})")
-        if len(passes) < e - 1:
-            raise ParameterError(
-                f"{where}.passes: {len(passes)} entries, but a cable that ends at joint {e} runs up from the base "
-                f"and passes every joint below it: give one routing for each of joints 1..{e - 1}")
-        default_turns = tuple(1 if p == "side" else 0 for p in passes)
-        turns = default_turns if self.extra_turns is None else self.extra_turns
-        try:
-            turns = tuple(turns)
-        except TypeError:
-            raise ParameterError(f"{where}.extra_turns: expected a list of integers, got {self.extra_turns!r}") from None
-        if len(turns) != len(passes):
-            raise ParameterError(f"{where}.extra_turns: expected {len(passes)} values (one per passed joint), "
-                                 f"got {len(turns)}")
-        for i, (t, p) in enumerate(zip(turns, passes)):
-            if not _is_integer(t):
-                raise ParameterError(f"{where}.extra_turns[{i}]: must be an integer, got {t!r}")
-            if p == "side" and t != 1:
-                raise ParameterError(
-                    f"{where}.extra_turns[{i}]: a side-routed pass needs exactly one extra turn on the top pulley of "
-                    f"joint {i + 1} (without it the cable leaves the pulley when the neck bends toward its side; "
-                    f"more turns only add a constant length), got {t!r}")
-            if p == "strut" and t != 0:
-                raise ParameterError(
-                    f"{where}.extra_turns[{i}]: a strut-routed pass wraps its pulleys less than half a turn; extra "
-                    f"turns there are not modelled (they only add a constant length), got {t!r}")
-        row = self.row
-        if row is not None:
-            if not _is_integer(row):
-                raise ParameterError(f"{where}.row: must be an integer, got {row!r}")
-            if row == 0:
-                raise ParameterError(f"{where}.row: row 0 is the plane of the bars, which has no pulleys; "
-                                     f"use a non-zero row (1, 2, ... or -1, -2, ...)")
-            row = int(row)
-        return CableRoute(self.side, passes, e, tuple(int(t) for t in turns), row)
-
-    @property
-    def kinds(self) -> tuple[int, ...]:
-        """Segment kind on joints 1..ends_at (``SEG_*`` codes)."""
-        return tuple(_PASS_KIND[self.side, p] for p in self.passes) + (_END_KIND[self.side],)
-
-    def pulleys(self) -> tuple[tuple[str, int], ...]:
-        """Pulleys the cable wraps, in order, as (corner, joint): ``("A", 1)`` is A_1.
-
-        The top corners C_i, D_i of joint i are the base corners A_{i+1}, B_{i+1}; they are
-        named as top corners here.  The attachment point is not a wrap and is not listed.
-        """
-        own_top, other_top = ("C", "D") if self.side == "left" else ("D", "C")
-        out = [("A" if self.side == "left" else "B", 1)]
-        for i, p in enumerate(self.passes, start=1):
-            out += [(other_top, i), (own_top, i)] if p == "strut" else [(own_top, i)]
-        return tuple(out)
-
-
-def _corner_key(corner: str, joint: int) -> tuple[str, int]:
-    """One hinge axis, whichever joint names it: C_i = A_{i+1}, D_i = B_{i+1}."""
-    if corner in ("A", "B"):
-        return ("C" if corner == "A" else "D", joint - 1)
-    return corner, joint
-
-
-@dataclass(frozen=True)
-class Routing:
-    """The cables of the neck (m of them, m independent of N); per-cable arrays follow this order."""
-
-    cables: tuple = _f(None, "-", "one CableRoute per cable; default: the paper's routing (design notes): right "
-                                  "cable j strut-routed on joints 1..j-1 and attached at D_j, one long left cable "
-                                  "side-routed to C_N")
-
-    def __post_init__(self):
-        if self.cables is None:
-            raise ParameterError("routing.cables: required (use paper_routing(n_joints))")
-        if isinstance(self.cables, (str, Mapping)) or not hasattr(self.cables, "__iter__"):
-            raise ParameterError(f"routing.cables: expected a list of cable tables, got {type(self.cables).__name__}")
-        cables = []
-        for k, c in enumerate(self.cables):
-            if isinstance(c, Mapping):
-                known = {f.name for f in fields(CableRoute)}
-                unknown = sorted(set(c) - known)
-                if unknown:
-                    raise ParameterError(f"routing.cables[{k}].{unknown[0]}: unknown field "
-                                         f"(known: {', '.join(sorted(known))})")
-                c = CableRoute(**c)
-            elif not isinstance(c, CableRoute):
-                raise ParameterError(f"routing.cables[{k}]: expected a table, got {type(c).__name__}")
-            cables.append(c.validated(k))
-        if not cables:
-            raise ParameterError("routing.cables: a neck needs at least one cable")
-        # Default rows: right cables 1, 2, ..., left cables -1, -2, ... (the paper's planes).
-        counters = {"right": 0, "left": 0}
-        rows = []
-        for c in cables:
-            counters[c.side] += 1
-            rows.append(c.row if c.row is not None else (counters[c.side] if c.side == "right" else -counters[c.side]))
-        cables = [dataclasses.replace(c, row=r) for c, r in zip(cables, rows)]
-        self._check_rows(cables)
-        object.__setattr__(self, "cables", tuple(cables))
-
-    @staticmethod
-    def _check_rows(cables) -> None:
-        """Two cables may share a row of pulleys only if they touch no common hinge axis."""
-        used: dict[tuple[int, tuple[str, int]], int] = {}
-        for k, c in enumerate(cables):
-            end = ("C" if c.side == "left" else "D", c.ends_at)
-            for corner in [_corner_key(*p) for p in c.pulleys()] + [end]:
-                other = used.get((c.row, corner))
-                if other is not None and other != k:
-                    name = (corner[0] + str(corner[1])) if corner[1] > 0 else ("A1" if corner[0] == "C" else "B1")
-                    raise ParameterError(
-                        f"routing.cables[{k}].row: cables {other} and {k} are both in row {c.row} and both use the "
-                        f"hinge axis {name} (a pulley groove holds one cable); give them different rows")
-                used[(c.row, corner)] = k
-
-    @property
-    def n_cables(self) -> int:
-        return len(self.cables)
-
-    def check_joints(self, n_joints: int) -> None:
-        """Every cable ends on an existing joint."""
-        for k, c in enumerate(self.cables):
-            if c.ends_at > n_joints:
-                raise ParameterError(f"routing.cables[{k}].ends_at: joint {c.ends_at} does not exist "
-                                     f"(n_joints = {n_joints})")
-
-    def segment_cases(self, n_joints: int) -> np.ndarray:
-        """``SEG_*`` code of every (cable j, joint i), shape (m, N), int; the analytic model's input."""
-        return _segment_cases(self, n_joints)
-
-    @property
-    def sides(self) -> tuple[str, ...]:
-        return tuple(c.side for c in self.cables)
-
-    def is_paper_kind(self, n_joints: int) -> bool:
-        """True for the paper's kind of routing: cables 1..N on the right, cable j strut-routed on
-        joints below j and attached at D_j, cable N+1 the long left cable (any turns and rows)."""
-        return self.segment_cases(n_joints).tolist() == paper_routing(n_joints).segment_cases(n_joints).tolist()
-
-    def describe(self) -> str:
-        """One line per cable: side, row, segment case per joint, pulleys wrapped, attachment."""
-        letters = {SEG_LEFT_END: "a", SEG_RIGHT_END: "b", SEG_LEFT_SIDE: "c", SEG_RIGHT_STRUT: "d",
-                   SEG_RIGHT_SIDE: "c'", SEG_LEFT_STRUT: "d'"}
-        lines = []
-        for k, c in enumerate(self.cables):
-            own_top = "C" if c.side == "left" else "D"
-            turned = {(own_top, i + 1) for i, t in enumerate(c.extra_turns) if t}
-            wraps = " ".join(f"{p}{i}" + ("+turn" if (p, i) in turned else "") for p, i in c.pulleys())
-            lines.append(f"c{k + 1}: {c.side:<5} row {c.row:+d}  cases {' '.join(letters[x] for x in c.kinds)}  "
-                         f"wraps {wraps}  attached at {own_top}{c.ends_at}")
-        return "\n".join(lines)
-
-
-@functools.lru_cache(maxsize=256)
-def _segment_cases(routing: Routing, n_joints: int) -> np.ndarray:
-    out = np.zeros((routing.n_cables, n_joints), dtype=np.intp)
-    for j, c in enumerate(routing.cables):
-        out[j, : c.ends_at] = c.kinds
-    out.flags.writeable = False
-    return out
-
-
-@functools.lru_cache(maxsize=64)
-def paper_routing(n_joints: int = 3) -> Routing:
-    """The paper's routing for N joints (design notes): right cable j (j = 1..N) strut-routed on
-    joints 1..j-1 and attached at D_j; the long left cable N+1 side-routed on joints 1..N-1 with one
-    extra turn on each C_i, attached at C_N."""
-    right = [CableRoute("right", ("strut",) * j, j + 1) for j in range(n_joints)]
-    return Routing(tuple(right + [CableRoute("left", ("side",) * (n_joints - 1), n_joints)]))
-
-
-
-def _route(side: str, strut: int, side_routed: int) -> CableRoute:
-    """A cable strut-routed on the first ``strut`` joints, side-routed on the next
-    ``side_routed`` and attached at the joint after them."""
-    return CableRoute(side, ("strut",) * strut + ("side",) * side_routed, strut + side_routed + 1)
-
-
-def neck10x4_routing() -> Routing:
-    """Ten X-joints, four cables: two antagonistic pairs, like a bird neck's lower and upper
-    muscle groups (README "Designing a neck").
-
-    c1 (right) and c2 (left) run up their sides over joints 1-4 and are attached at joint 5:
-    they bend the lower neck.  c3 (right) and c4 (left) cross joints 1-5 strut-routed (along the
-    diagonals, where their moment arm is small: |Z| <= 1.3 mm against about 25 mm on a side),
-    then run up their sides over joints 6-9 and are attached at the head (joint 10): they bend
-    the upper neck.  Same-side pulls make C curves, crossed pulls S curves.
-    """
-    return Routing((_route("right", 0, 4), _route("left", 0, 4), _route("right", 5, 4), _route("left", 5, 4)))
-
-
-def mirrored_paper_routing(n_joints: int = 3) -> Routing:
-    """The paper's routing mirrored: N left cables (cable j strut-routed along the diagonals A->D
-    below joint j, attached at C_j) and one long right cable side-routed to D_N."""
-    left = [CableRoute("left", ("strut",) * j, j + 1) for j in range(n_joints)]
-    return Routing(tuple(left + [CableRoute("right", ("side",) * (n_joints - 1), n_joints)]))
-
-
-def mixed4_routing() -> Routing:
-    """Four joints, four cables using every segment kind (a test case, not a design): a left cable
-    alternating strut and side, a right cable alternating side and strut, a short right cable
-    and a left cable attached at joint 1."""
-    return Routing((CableRoute("left", ("strut", "side", "strut"), 4),
-                    CableRoute("right", ("side", "strut", "side"), 4),
-                    CableRoute("right", ("side",), 2), CableRoute("left", (), 1)))
 
 
 EXAMPLES = {

@@ -2,7 +2,8 @@
 
 They live in the model core (not in ``controllers``) because the dm_control environment
 (:mod:`neck_sim.env`) needs them and ``neck_sim`` may not import ``controllers``;
-``controllers.trajectories`` re-exports everything here.
+``controllers.trajectories`` re-exports them and adds the force-limited
+:func:`~controllers.trajectories.make_trajectory`.
 
 A :class:`Trajectory` is a list of knot poses at knot times; between two knots the reference
 follows a cycloidal profile (zero velocity and acceleration at both ends), and two equal
@@ -33,7 +34,7 @@ MOVE_TIME = 2.5
 HOLD_TIME = 1.0
 
 __all__ = ["MOVE_TIME", "HOLD_TIME", "TrajectorySample", "Trajectory", "cycloidal_path",
-           "control_test_trajectory", "identification_trajectory", "TRAJECTORIES", "make_trajectory"]
+           "control_test_trajectory", "identification_trajectory", "TRAJECTORIES", "scaled_trajectory"]
 
 
 class TrajectorySample(NamedTuple):
@@ -198,13 +199,21 @@ def identification_trajectory(params: NeckParams, move_time: float = MOVE_TIME,
 TRAJECTORIES = {"control-test": control_test_trajectory, "identification": identification_trajectory}
 
 
-def make_trajectory(name: str, params: NeckParams, duration_scale: float = 1.0, amplitude: float = 1.0) -> Trajectory:
+def scaled_trajectory(name: str, params: NeckParams, duration_scale: float = 1.0,
+                      amplitude: float = 1.0) -> Trajectory:
     """One of :data:`TRAJECTORIES` by name with its move and hold times scaled by ``duration_scale``
-    and its joint angles by ``amplitude`` (:func:`controllers.trajectories.make_trajectory` chooses
-    the amplitude that keeps a long neck's cable forces within f_max)."""
+    and its joint angles by ``amplitude``, exactly as given.
+
+    A scaled trajectory (``amplitude`` != 1) is named ``"<name> x<amplitude>"`` so that logs and
+    tables say so.  :func:`controllers.trajectories.make_trajectory` is the one that chooses the
+    amplitude keeping a long neck's cable forces within f_max.
+    """
     if name not in TRAJECTORIES:
         raise ValueError(f"trajectory: unknown name {name!r} (known: {', '.join(TRAJECTORIES)})")
     if not np.isfinite(duration_scale) or duration_scale <= 0:
         raise ValueError(f"duration_scale: must be positive, got {duration_scale}")
-    return TRAJECTORIES[name](params, move_time=MOVE_TIME * duration_scale,
-                               hold_time=HOLD_TIME * duration_scale, amplitude=amplitude)
+    traj = TRAJECTORIES[name](params, move_time=MOVE_TIME * duration_scale,
+                              hold_time=HOLD_TIME * duration_scale, amplitude=amplitude)
+    if amplitude != 1.0:
+        traj = Trajectory(traj.times, traj.poses, f"{name} x{amplitude:.2f}")
+    return traj

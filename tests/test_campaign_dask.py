@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from controllers.campaign import ClusterError, ExecutorSpec, open_executor, run_campaign
+from neck_sim.campaign import ClusterError, ExecutorSpec, open_executor, run_campaign
 from controllers.parallel import RunSpec, run_all
 from neck_sim.effects import Effects, ViscousFriction
 from neck_sim.logs import read_log
@@ -154,7 +154,7 @@ def test_a_cluster_whose_workers_all_died_fails_after_the_worker_timeout(separat
 _CALLER = """
 import signal, sys, time
 sys.path.insert(0, {root!r})
-from controllers.campaign import ExecutorSpec, open_executor, run_campaign
+from neck_sim.campaign import ExecutorSpec, open_executor, run_campaign
 
 def stop(signum, frame):
     raise KeyboardInterrupt

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from controllers.campaign import ExecutorSpec, LocalPool, WorkerDied, open_executor, run_campaign
+from neck_sim.campaign import ExecutorSpec, LocalPool, WorkerDied, open_executor, run_campaign
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
@@ -89,7 +89,7 @@ def _alive(pid: int) -> bool:
 _CALLER = textwrap.dedent("""
     import signal, sys, time
     sys.path.insert(0, {root!r})
-    from controllers.campaign import ExecutorSpec, run_campaign
+    from neck_sim.campaign import ExecutorSpec, run_campaign
 
     def stop(signum, frame):
         raise KeyboardInterrupt

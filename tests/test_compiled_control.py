@@ -20,7 +20,8 @@ from controllers.trajectories import cycloidal_path
 from neck_sim.analytic.cables import transmission_kernel, transmission_matrix
 from neck_sim.analytic.dynamics import arctan_friction, elongation_step, linkage_dynamics
 from neck_sim.analytic.estimation import pinv_increment
-from neck_sim.params import CableRoute, Routing, default_params
+from neck_sim.params import default_params
+from neck_sim.routing import CableRoute, Routing
 from neck_sim.plant import Plant
 
 

@@ -7,7 +7,8 @@ import pytest
 
 from neck_sim import crossval as CV
 from neck_sim.cli import main
-from neck_sim.params import EXAMPLES, CableRoute, Routing, default_params, example_params
+from neck_sim.params import EXAMPLES, default_params, example_params
+from neck_sim.routing import CableRoute, Routing
 
 ISSUE_THRESHOLDS = {"lengths": 1e-9, "Z": 1e-6, "M": 1e-6, "g": 1e-6}
 

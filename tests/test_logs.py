@@ -17,6 +17,7 @@ from test_logs_fixtures import motors_messages, synthetic_arrays, write_arrays, 
 
 from neck_sim import atomic
 from neck_sim.atomic import TEMP_PREFIX
+import neck_sim.logs.payloads as payloads_mod
 import neck_sim.logs.reader as reader_mod
 from neck_sim.logs import LogError, LogWriter, read_log
 from neck_sim.params import default_params
@@ -155,8 +156,8 @@ def test_other_producers_layout_is_read(tmp_path):
 def test_time_window_reads_only_its_chunks(written, monkeypatch):
     path, _, arrays = written
     calls = []
-    real = reader_mod._decompress
-    monkeypatch.setattr(reader_mod, "_decompress", lambda *a: calls.append(1) or real(*a))
+    real = payloads_mod._decompress
+    monkeypatch.setattr(payloads_mod, "_decompress", lambda *a: calls.append(1) or real(*a))
     read_log(path)
     all_chunks = len(calls)
     calls.clear()

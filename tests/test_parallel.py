@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from controllers.campaign import ExecutorSpec, run_campaign
+from neck_sim.campaign import ExecutorSpec, run_campaign
 from controllers.parallel import RunSpec, run_all
 from neck_sim.effects import Effects, ViscousFriction
 from neck_sim.logs import read_log

@@ -49,7 +49,7 @@ def test_paper_routing_closed_loop_unchanged(reference):
 def test_mirrored_routing_is_the_paper_at_minus_alpha(rng):
     """b(alpha) = a(-alpha), c'(alpha) = c(-alpha), d'(alpha) = d(-alpha): the mirrored neck's
     cable j at alpha is the paper's cable j at -alpha (eqs 3-6 written once, mirrors separately)."""
-    from neck_sim.params import mirrored_paper_routing
+    from neck_sim.routing import mirrored_paper_routing
 
     for n in (1, 3, 4):
         paper, mirrored = default_params(n), default_params(n, mirrored_paper_routing(n))
@@ -60,7 +60,7 @@ def test_mirrored_routing_is_the_paper_at_minus_alpha(rng):
 
 
 def _cables(*tables):
-    from neck_sim.params import Routing
+    from neck_sim.routing import Routing
     return Routing(cables=list(tables))
 
 

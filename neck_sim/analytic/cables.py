@@ -1,6 +1,6 @@
 """Cable lengths with pulleys, the transmission matrix Z and its time derivative (paper §3.1).
 
-Routing is data (:class:`neck_sim.params.Routing`, m cables for N joints): on every joint a cable
+Routing is data (:class:`neck_sim.routing.Routing`, m cables for N joints): on every joint a cable
 follows one segment kind -- the paper's cases (a) eq (3), (b) eq (4), (c) eq (5), (d) eq (6) or the
 mirror images c'(alpha) = c(-alpha) = l_r + r alpha (right cable up the right side) and
 d'(alpha) = d(-alpha) (left cable crossing along the diagonal A->D); note b(alpha) = a(-alpha).
@@ -32,8 +32,9 @@ import numpy as np
 from neck_sim.analytic.geometry import (_joint_local, _psi_derivatives, _side_terms, check_alpha, check_pose,
                                         side_terms_kernel)
 from neck_sim.jit import dual, kernel
-from neck_sim.params import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
-                             SEG_RIGHT_SIDE, SEG_RIGHT_STRUT, NeckParams)
+from neck_sim.params import NeckParams
+from neck_sim.routing import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
+                              SEG_RIGHT_SIDE, SEG_RIGHT_STRUT)
 
 __all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
            "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]

@@ -14,7 +14,8 @@ from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matr
 from neck_sim.analytic.dynamics import static_elongation
 from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
-from neck_sim.params import SEG_RIGHT_END, SEG_RIGHT_STRUT, NeckParams
+from neck_sim.params import NeckParams
+from neck_sim.routing import SEG_RIGHT_END, SEG_RIGHT_STRUT
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
            "cable_stretch_at_f_max",

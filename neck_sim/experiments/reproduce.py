@@ -59,8 +59,8 @@ class ReproduceSettings:
 
     @property
     def executor(self):
-        """Where the closed-loop runs and the simulator comparison run (controllers.campaign)."""
-        from controllers.campaign import ExecutorSpec
+        """Where the closed-loop runs and the simulator comparison run (neck_sim.campaign)."""
+        from neck_sim.campaign import ExecutorSpec
 
         return ExecutorSpec(workers=self.workers, cluster=self.cluster)
 
@@ -155,7 +155,7 @@ def paper_runs(params, settings: ReproduceSettings, logs_dir: str) -> list:
 def run_experiments(specs, settings: ReproduceSettings, executor=None) -> dict:
     """Run the closed-loop specs (the one executor call of the workflow); label -> RunResult.
 
-    ``executor``: an executor already open (:func:`controllers.campaign.open_executor`), else
+    ``executor``: an executor already open (:func:`neck_sim.campaign.open_executor`), else
     ``settings.executor`` (local worker processes, or the Dask cluster of ``settings.cluster``).
     """
     from controllers.parallel import run_all
@@ -166,7 +166,7 @@ def run_experiments(specs, settings: ReproduceSettings, executor=None) -> dict:
 
 def reproduce(settings: ReproduceSettings) -> Reproduction:
     """Run everything; write ``report.md``, ``results.json``, the logs and figures in ``settings.out``."""
-    from controllers.campaign import open_executor
+    from neck_sim.campaign import open_executor
 
     with open_executor(settings.executor) as pool:
         return _reproduce(settings, pool)

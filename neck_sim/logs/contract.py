@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neck_sim.params import NeckParams, ParameterError, Routing, default_params, paper_routing, to_dict
+from neck_sim.params import NeckParams, ParameterError, default_params, to_dict
+from neck_sim.routing import Routing, paper_routing
 
 __all__ = ["LogError", "TopicSpec", "TOPICS", "TOPIC_BY_NAME", "NECK_RECORD", "RUN_RECORD",
            "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic", "check_plausible"]

@@ -19,7 +19,8 @@ import orjson
 
 from neck_sim.analytic import forward_kinematics
 from neck_sim.logs import jsonrecords
-from neck_sim.params import NeckParams, paper_routing
+from neck_sim.params import NeckParams
+from neck_sim.routing import paper_routing
 
 __all__ = ["TF_TOPIC", "SCENE_TOPIC", "FRAME_TRANSFORMS_SCHEMA", "SCENE_UPDATE_SCHEMA",
            "Batch", "frame_transforms", "scene_update", "visualization_batches"]

@@ -12,6 +12,7 @@ each message's offset, so decoding is vectorised:
   ``json.loads``, which also locates the first bad message when the data is wrong.
 
 Files without a summary or message index are read through the ``mcap`` library's reader.
+Collecting the payloads is :mod:`neck_sim.logs.payloads`; decoding and checking them is here.
 Every problem (missing topic/field/record, wrong array length, non-finite number, time not
 increasing, t != log_time, truncated or corrupt file) raises :class:`LogError` naming it.
 """
@@ -20,17 +21,15 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 import warnings
-import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
-from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
 from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TOPICS, LogError,
                                     TopicSpec, check_plausible, params_from_metadata, resolve_topic)
+from neck_sim.logs.payloads import READ_ERRORS, Payloads, collect_indexed, collect_linear
 from neck_sim.params import NeckParams
 
 __all__ = ["read_log", "require_camera_frames",
@@ -38,9 +37,7 @@ __all__ = ["read_log", "require_camera_frames",
            "TruthSamples"]
 
 _MAGIC = b"\x89MCAP0\r\n"
-_OP_CHUNK, _OP_MESSAGE_INDEX, _OP_MESSAGE = 0x06, 0x07, 0x05
 _NUMBER_CHARS = b"0123456789.+-eE"
-_READ_ERRORS = (McapError, struct.error, ValueError, KeyError, IndexError, EOFError, OSError)
 _MAX_NS = 2**63 - 1
 _T_TOLERANCE_NS = 1000          # |t * 1e9 - log_time| allowed (the contract: the same instant)
 
@@ -180,13 +177,13 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
         reader = SeekingReader(fh, validate_crcs=True)
         try:
             summary = reader.get_summary()
-        except _READ_ERRORS as exc:
+        except READ_ERRORS as exc:
             raise LogError(f"{path}: truncated or corrupt MCAP file: no valid footer/summary at the end "
                            f"(was the run interrupted before the log was closed?) [{exc}]") from None
         try:
             metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             attachments = {a.name: bytes(a.data) for a in reader.iter_attachments()}
-        except _READ_ERRORS as exc:
+        except READ_ERRORS as exc:
             raise LogError(f"{path}: corrupt MCAP file: cannot read metadata/attachments [{exc}]") from None
         if NECK_RECORD not in metadata:
             raise LogError(f"{path}: missing metadata record {NECK_RECORD!r} (the neck's nominal constants)")
@@ -203,7 +200,7 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
             by_id = summary.statistics.channel_message_counts
             counts = {c.topic: int(by_id.get(cid, 0)) for cid, c in summary.channels.items()}
         if summary is None:          # a valid MCAP without summary: scan it (counts are the window's)
-            payloads = _collect_linear(reader, path, None, start_ns, end_ns)
+            payloads = collect_linear(reader, path, None, start_ns, end_ns)
             channels = {topic: None for topic in payloads}
             counts = {topic: len(data) for topic, (_, data) in payloads.items()}
         for spec in required:
@@ -220,13 +217,13 @@ def read_log(path, *, start: float | None = None, end: float | None = None, topi
                                "the contract says 'json'")
         if summary is not None:
             ids = {channels[s.topic].id: s.topic for s in present}
-            payloads = _collect_indexed(fh, path, summary, ids, start_ns, end_ns)
+            payloads = collect_indexed(fh, path, summary, ids, start_ns, end_ns)
             if payloads is None:           # no message index: let the mcap reader walk the chunks
-                payloads = _collect_linear(reader, path, [s.topic for s in present], start_ns, end_ns)
+                payloads = collect_linear(reader, path, [s.topic for s in present], start_ns, end_ns)
 
         samples, notes = {}, ()
         for spec in present:
-            log_times, data = payloads.get(spec.topic) or _Payloads.concat([], [])
+            log_times, data = payloads.get(spec.topic) or Payloads.concat([], [])
             samples[spec.name] = _decode(path, spec, n, params.n_cables, log_times, data)
             if spec in required and (start is not None or end is not None) and len(samples[spec.name].t) < 2:
                 raise LogError(f"{path}: {_window_text(start, end)} holds {len(samples[spec.name].t)} sample(s) of "
@@ -268,146 +265,6 @@ def _span_text(summary) -> str:
     return f"; the log's messages span t = {stats.message_start_time * 1e-9:.6g} .. {stats.message_end_time * 1e-9:.6g} s"
 
 
-# -- collecting payloads ---------------------------------------------------------------------------
-
-def _collect_linear(reader, path, topics, start_ns, end_ns) -> dict:
-    """topic -> (log_times, payloads) through the mcap library (files without message index)."""
-    out: dict[str, tuple[list, list]] = {}
-    try:
-        for _, channel, message in reader.iter_messages(topics=topics, log_time_order=False,
-                                                        starting_at=start_ns, ending_before=end_ns):
-            times, data = out.setdefault(channel.topic, ([], []))
-            times.append(message.log_time)
-            data.append(bytes(message.data))
-    except _READ_ERRORS as exc:
-        raise LogError(f"{path}: corrupt MCAP data [{exc}]") from None
-    return {topic: (np.array(t, dtype=np.int64), _Payloads.from_list(d)) for topic, (t, d) in out.items()}
-
-
-def _decompress(path, compression: str, data: bytes, size: int) -> bytes:
-    try:
-        if compression == "zstd":
-            import zstandard
-            return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        if compression == "lz4":
-            import lz4.frame
-            return lz4.frame.decompress(data)
-        if compression == "":
-            return data
-    except Exception as exc:       # zstd/lz4 raise their own error types on corrupt data
-        raise LogError(f"{path}: corrupt chunk: {compression} decompression failed ({exc})") from None
-    raise LogError(f"{path}: unsupported chunk compression {compression!r}")
-
-
-def _gather_u(arr: np.ndarray, offsets: np.ndarray, nbytes: int) -> np.ndarray:
-    """Little-endian unsigned integers of ``nbytes`` bytes at ``offsets`` of a uint8 array."""
-    idx = offsets[:, None] + np.arange(nbytes)
-    return arr[idx].copy().view(f"<u{nbytes}").ravel()
-
-
-def _collect_indexed(fh, path, summary, ids: dict[int, str], start_ns, end_ns) -> dict | None:
-    """topic -> (log_times, payloads) from the chunk and message indexes; None without them."""
-    out: dict[str, tuple[list, list]] = {topic: ([], []) for topic in ids.values()}
-    if not summary.chunk_indexes:          # unchunked file: messages sit in the data section
-        return None
-    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
-    for ci in chunks:
-        if start_ns is not None and ci.message_end_time < start_ns:
-            continue
-        if end_ns is not None and ci.message_start_time >= end_ns:
-            continue
-        if not ci.message_index_offsets:
-            return None
-        wanted = [cid for cid in ids if cid in ci.message_index_offsets]
-        if not wanted:
-            continue
-        fh.seek(ci.chunk_start_offset)
-        raw = fh.read(ci.chunk_length + ci.message_index_length)
-        if len(raw) != ci.chunk_length + ci.message_index_length:
-            raise LogError(f"{path}: truncated file: chunk at byte {ci.chunk_start_offset} runs past the end")
-        try:
-            if raw[0] != _OP_CHUNK:
-                raise LogError(f"{path}: corrupt index: no chunk at byte {ci.chunk_start_offset}")
-            _, _, size, crc, clen = struct.unpack_from("<QQQII", raw, 9)
-            compression = raw[41:41 + clen].decode()
-            (rlen,) = struct.unpack_from("<Q", raw, 41 + clen)
-            body = raw[49 + clen:49 + clen + rlen]
-        except (struct.error, UnicodeDecodeError):
-            raise LogError(f"{path}: corrupt chunk header at byte {ci.chunk_start_offset}") from None
-        buf = _decompress(path, compression, body, size)
-        if len(buf) != size or (crc != 0 and zlib.crc32(buf) != crc):
-            raise LogError(f"{path}: corrupt chunk at byte {ci.chunk_start_offset}: CRC/size mismatch")
-        arr = np.frombuffer(buf, dtype=np.uint8)
-        for cid in wanted:
-            topic = ids[cid]
-            off = ci.message_index_offsets[cid] - ci.chunk_start_offset
-            try:
-                op, _, ch, nbytes = struct.unpack_from("<BQHI", raw, off)
-            except struct.error:
-                raise LogError(f"{path}: corrupt message index after chunk at byte {ci.chunk_start_offset}") from None
-            if op != _OP_MESSAGE_INDEX or ch != cid or off + 15 + nbytes > len(raw) or nbytes % 16:
-                raise LogError(f"{path}: corrupt message index for {topic} after chunk at byte {ci.chunk_start_offset}")
-            entries = np.frombuffer(raw, dtype="<u8", count=nbytes // 8, offset=off + 15).reshape(-1, 2)
-            entries = entries[np.argsort(entries[:, 1], kind="stable")]     # file order
-            times, offsets = entries[:, 0].astype(np.int64), entries[:, 1].astype(np.int64)
-            keep = np.ones(len(times), bool)
-            if start_ns is not None:
-                keep &= times >= start_ns
-            if end_ns is not None:
-                keep &= times < end_ns
-            times, offsets = times[keep], offsets[keep]
-            if len(offsets) == 0:
-                continue
-            if offsets.max() + 31 > len(buf):
-                raise LogError(f"{path}: corrupt message index for {topic}: offset past the chunk end")
-            lengths = _gather_u(arr, offsets + 1, 8).astype(np.int64)
-            ok = ((arr[offsets] == _OP_MESSAGE) & (_gather_u(arr, offsets + 9, 2) == cid)
-                  & (_gather_u(arr, offsets + 15, 8).astype(np.int64) == times)
-                  & (offsets + 9 + lengths <= len(buf)) & (lengths >= 22))
-            if not ok.all():
-                raise LogError(f"{path}: corrupt message index for {topic}: it does not point at its messages")
-            out[topic][0].append(times)
-            out[topic][1].append(_gather_payloads(buf, offsets + 31, lengths - 22))
-    return {topic: _Payloads.concat(t, d) for topic, (t, d) in out.items()}
-
-
-def _gather_payloads(buf: bytes, starts: np.ndarray, sizes: np.ndarray) -> "_Payloads":
-    """Payloads [starts, starts + sizes) of ``buf`` joined with commas (slicing is ~0.1 us each)."""
-    first = np.zeros(len(starts), np.int64)
-    first[1:] = np.cumsum(sizes[:-1] + 1)
-    blob = b",".join([buf[a:b] for a, b in zip(starts.tolist(), (starts + sizes).tolist())])
-    return _Payloads(blob, first, sizes)
-
-
-class _Payloads:
-    """Message payloads of one topic: ``blob`` = payloads joined by commas, with their bounds."""
-
-    def __init__(self, blob: bytes, first: np.ndarray, sizes: np.ndarray):
-        self.blob, self.first, self.sizes = blob, first, sizes
-
-    def __len__(self) -> int:
-        return len(self.first)
-
-    def __getitem__(self, i: int) -> bytes:
-        return self.blob[self.first[i]:self.first[i] + self.sizes[i]]
-
-    @classmethod
-    def from_list(cls, data: list) -> "_Payloads":
-        sizes = np.array([len(d) for d in data], dtype=np.int64)
-        first = np.zeros(len(data), np.int64)
-        first[1:] = np.cumsum(sizes[:-1] + 1)
-        return cls(b",".join(data), first, sizes)
-
-    @classmethod
-    def concat(cls, times: list, parts: list) -> tuple[np.ndarray, "_Payloads"]:
-        if not parts:
-            return np.zeros(0, np.int64), cls(b"", np.zeros(0, np.int64), np.zeros(0, np.int64))
-        shift = np.cumsum([0] + [len(p.blob) + 1 for p in parts[:-1]])
-        first = np.concatenate([p.first + d for p, d in zip(parts, shift)])
-        sizes = np.concatenate([p.sizes for p in parts])
-        return np.concatenate(times), cls(b",".join(p.blob for p in parts), first, sizes)
-
-
 # -- decoding --------------------------------------------------------------------------------------
 
 _TEMPLATES: dict[tuple[str, int], tuple[bytes, bool, int]] = {}
@@ -428,7 +285,7 @@ def _template(spec: TopicSpec, n: int, m: int):
     return _TEMPLATES[key]
 
 
-def _decode_fast(spec: TopicSpec, n: int, m: int, data: "_Payloads") -> np.ndarray | None:
+def _decode_fast(spec: TopicSpec, n: int, m: int, data: "Payloads") -> np.ndarray | None:
     """(T, K) numbers when every message has the writer's layout, else None.
 
     The skeleton check (all messages, numbers deleted, equal the template) guarantees every number
@@ -451,7 +308,7 @@ def _decode_fast(spec: TopicSpec, n: int, m: int, data: "_Payloads") -> np.ndarr
     return values.reshape(len(data), k)
 
 
-def _decode_json(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "_Payloads") -> dict:
+def _decode_json(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "Payloads") -> dict:
     """Field arrays through json.loads, with errors locating the first bad message."""
     def where(i):
         return f"message {i} (log_time {int(log_times[i]) * 1e-9:.6f} s)"
@@ -489,7 +346,7 @@ def _decode_json(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, d
     return out
 
 
-def _decode(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "_Payloads"):
+def _decode(path, spec: TopicSpec, n: int, m: int, log_times: np.ndarray, data: "Payloads"):
     lengths = spec.lengths(n, m)
     if len(data) == 0:
         fields = {"t": np.zeros(0)} | {f: np.zeros((0, k)) for f, k in zip(spec.field_names, lengths)}
