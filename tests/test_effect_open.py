@@ -21,8 +21,9 @@ import pytest
 from identification.diagnosis import blind_forms
 from identification.diagnosis import columns as IC
 from neck_sim import effects as E
-from neck_sim.effects.base import MotorEffect, indices, per_item
+from neck_sim.effects.base import MotorEffect
 from neck_sim.params import default_params
+from neck_sim.validation import indices, per_item
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Effect, finite
+from neck_sim.effects.base import Effect
+from neck_sim.validation import finite
 
 __all__ = ["ActuationDelay"]
 

@@ -36,7 +36,6 @@ the paper's routing 0..N-1 the right cables c1..cN, N the long left cable); per-
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
@@ -44,44 +43,7 @@ import numpy as np
 
 from neck_sim.params import NeckParams
 
-__all__ = ["Effect", "MotorEffect", "finite", "indices", "per_item"]
-
-
-# ------------------------------------------------------------------------------------ validation
-
-def finite(name: str, v: float, *, positive: bool = False, non_negative: bool = False) -> float:
-    """``v`` as a float; ValueError naming ``name`` if it is not a finite number (of that sign)."""
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: not a number ({v!r})") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: must be finite, got {v!r}")
-    if positive and v <= 0:
-        raise ValueError(f"{name}: must be > 0, got {v!r}")
-    if non_negative and v < 0:
-        raise ValueError(f"{name}: must be >= 0, got {v!r}")
-    return v
-
-
-def indices(name: str, v) -> tuple[int, ...] | None:
-    """Distinct non-negative 0-based indices (None = all)."""
-    if v is None:
-        return None
-    try:
-        out = tuple(int(i) for i in (v if hasattr(v, "__iter__") else [v]))
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a list of 0-based indices, got {v!r}") from None
-    if any(i < 0 for i in out) or len(set(out)) != len(out) or not out:
-        raise ValueError(f"{name}: expected distinct non-negative 0-based indices, got {v!r}")
-    return out
-
-
-def per_item(name: str, v, *, positive=False, non_negative=False) -> tuple[float, ...] | float:
-    """A scalar or a tuple of values (one per affected cable/joint)."""
-    if np.ndim(v) == 0:
-        return finite(name, v, positive=positive, non_negative=non_negative)
-    return tuple(finite(f"{name}[{k}]", x, positive=positive, non_negative=non_negative) for k, x in enumerate(v))
+__all__ = ["Effect", "MotorEffect"]
 
 
 # ------------------------------------------------------------------------------------- effects

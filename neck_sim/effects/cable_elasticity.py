@@ -7,8 +7,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Effect, per_item
+from neck_sim.effects.base import Effect
 from neck_sim.params import NeckParams
+from neck_sim.validation import per_item
 
 __all__ = ["CableElasticity"]
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from neck_sim.effects.base import Effect, finite
+from neck_sim.effects.base import Effect
+from neck_sim.validation import finite
 
 __all__ = ["CameraDelay"]
 

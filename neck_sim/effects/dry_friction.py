@@ -8,8 +8,9 @@ from typing import ClassVar
 import numpy as np
 
 from neck_sim.analytic.dynamics import arctan_friction
-from neck_sim.effects.base import MotorEffect, finite, indices, per_item
+from neck_sim.effects.base import MotorEffect
 from neck_sim.params import NeckParams
+from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["DryFriction"]
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from neck_sim.effects.base import Effect, finite
+from neck_sim.effects.base import Effect
 from neck_sim.params import NeckParams
+from neck_sim.validation import finite
 
 __all__ = ["Payload"]
 

@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Effect, indices, per_item
+from neck_sim.effects.base import Effect
+from neck_sim.validation import indices, per_item
 
 __all__ = ["Pretension"]
 

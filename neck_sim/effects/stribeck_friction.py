@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import MotorEffect, finite, indices, per_item
+from neck_sim.effects.base import MotorEffect
+from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["StribeckFriction"]
 
