@@ -1,4 +1,4 @@
-"""Blind tests of the diagnosis (issue 7, item 6): hide an effect in the plant, diagnose the log.
+"""Blind tests of the diagnosis: hide an effect in the plant, diagnose the log.
 
 The effects that the open-world generator hides by mechanisms of its own (friction laws, springs,
 payload, delays, pretension, joint friction, camera delay) are tested in

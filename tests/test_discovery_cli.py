@@ -202,7 +202,7 @@ def test_look_alikes_are_told_apart_or_reported_together(monkeypatch):
 
 
 def test_accepted_out_of_range_forces_are_named_in_every_output(viscous_log, tmp_path, capsys):
-    """Issue 14 item 2: forces accepted on request are said in the summary, the JSON and the report."""
+    """Forces accepted on request are said in the summary, the JSON and the report."""
     _, path = viscous_log
     spiked = tmp_path / "spiked.mcap"
     seen = {"motors": 0}

@@ -150,7 +150,7 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     js, rep, ext = tmp_path / "d.json", tmp_path / "report", tmp_path / "model.json"
     assert main(["diagnose", str(path), "--steps", "1", "--json", str(js), "--report", str(rep),
                  "--extended", str(ext), "--quiet"]) == 0
-    # the leader of the verdict: since the open-world diagnosis (issue 12) spring_error is listed
+    # the leader of the verdict: since the open-world diagnosis spring_error is listed
     # beside it (each adds to the other: a torque on the cable's joint) and leftover structure as
     # 'unexplained'; the finding's fit and the extended model are the bias's
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("verdict: "))
