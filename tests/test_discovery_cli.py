@@ -9,7 +9,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from identification.blind import make_case
+from identification.diagnosis.blind import make_case
 from identification.diagnosis.candidates import ModelSpec, Term
 from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model, split_samples, score
 from identification.diagnosis.statistics import wilcoxon_p

@@ -101,7 +101,7 @@ class _Only:
 @pytest.fixture(scope="module")
 def measured(tmp_path_factory):
     """A short simulated log (one sequence of the identification trajectory) as MeasuredData."""
-    from identification.blind import excitation_trajectory, run_log
+    from identification.diagnosis.blind import excitation_trajectory, run_log
     from identification.diagnosis.measured import MeasuredData
     from neck_sim.logs import read_log
 

@@ -97,7 +97,7 @@ def registered():
 def bias_logs(registered, tmp_path_factory):
     """seed -> (cable, bias N, log path): the bias on a right cable and with a sign drawn from the seed
     (the long left cable is soft and stiffens strongly: its law absorbs offsets, as for the pretension)."""
-    from identification.blind import run_log
+    from identification.diagnosis.blind import run_log
 
     out = {}
     for seed in (1, 2):
@@ -126,7 +126,7 @@ def test_registry_refuses_bad_effects(registered):
 
 def test_a_new_effect_is_a_blind_case(registered):
     """Its blind form is a case of the generator: drawn from a seed, expecting the new effect."""
-    from identification.blind import hidden_effect
+    from identification.diagnosis.blind import hidden_effect
 
     assert "cable_bias" in blind_forms.forms()
     case = hidden_effect("cable_bias", 1)

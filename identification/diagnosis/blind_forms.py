@@ -4,8 +4,8 @@ A form is written here, in the test generator, not in the effect's physics or it
 hidden effect should differ from the candidate the diagnosis fits (another Stribeck speed and
 smoothing, a sharper dry-friction sign, friction on one cable only, a pulley-friction smoothing
 other than the candidate's), so that a blind test shows the diagnosis finds the effect, not its
-own formula.  :func:`identification.blind.hidden_effect` draws the magnitude factor, the cable and
-the joint from a seed and calls the form.
+own formula.  :func:`identification.diagnosis.blind.hidden_effect` draws the magnitude factor,
+the cable and the joint from a seed and calls the form.
 
 Usage::
 

@@ -187,8 +187,8 @@ def baseline_without(name: str) -> tuple[str, ...]:
 
 def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams | None = None) -> BlindCase:
     """The blind case ``name``: magnitude ``level`` x the effect's test magnitude times a factor
-    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``; the effect's own module
-    says how to hide it (:mod:`identification.diagnosis.blind_forms`).
+    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``; the generator's form
+    for the case says how to hide it (:mod:`identification.diagnosis.blind_forms`).
 
     The hidden forms differ from the candidates' on purpose (see the module docstring).
     """
