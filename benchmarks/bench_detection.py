@@ -265,7 +265,7 @@ def write_docs(path: str, text: str, command: str, name: str = "bench_detection"
 
 def timing(progress: bool = True) -> str:
     """Whole diagnosis of a 60 s log on one core, and the paper's identification of the same log."""
-    from identification.blind import excitation_trajectory, hidden_effect, run_log
+    from identification.diagnosis.blind import excitation_trajectory, hidden_effect, run_log
     from identification.diagnosis import DiagnosisSettings, diagnose_log
     from identification.paper import identify_log
     from neck_sim.logs import read_log

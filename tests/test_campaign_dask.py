@@ -45,7 +45,7 @@ def test_an_unreachable_cluster_is_named():
 
 
 def test_blind_logs_generated_on_the_cluster_equal_local_ones(cluster, tmp_path):
-    from identification.blind import make_case, make_cases
+    from identification.diagnosis.blind import make_case, make_cases
 
     [(case, path)] = make_cases([("viscous_friction", 5, 0.5)], tmp_path / "dask",
                                 ExecutorSpec(cluster=cluster.scheduler_address), progress=False)

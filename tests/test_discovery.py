@@ -1,4 +1,4 @@
-"""Blind tests of the diagnosis (issue 7, item 6): hide an effect in the plant, diagnose the log.
+"""Blind tests of the diagnosis: hide an effect in the plant, diagnose the log.
 
 The effects that the open-world generator hides by mechanisms of its own (friction laws, springs,
 payload, delays, pretension, joint friction, camera delay) are tested in
@@ -6,7 +6,7 @@ payload, delays, pretension, joint friction, camera delay) are tested in
 callback (eq 54 cables, the pulley friction's C kernel) and the paper's story.
 
 Every log is a 20.8 s identification-like run (3 of the §5.2.2 sequences, 0.9 s moves) of the
-MuJoCo plant with one effect hidden at the test magnitude of ``identification.blind.MAGNITUDES``
+MuJoCo plant with one effect hidden at the test magnitude of ``identification.diagnosis.blind.MAGNITUDES``
 (times a factor in [0.8, 1.25]) on a cable or joint drawn from the seed; the forms differ from
 the candidates' own where the vocabulary allows (another Stribeck speed and smoothing, a sharper
 or a tanh-smoothed dry-friction sign, friction on one cable only, another pulley smoothing, a
@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.blind import make_case
+from identification.diagnosis.blind import make_case
 from identification.diagnosis import DiagnosisSettings, diagnose_log
 
 SEED = 3

@@ -9,8 +9,8 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from identification.blind import make_case
-from identification.candidates import ModelSpec, Term
+from identification.diagnosis.blind import make_case
+from identification.diagnosis.candidates import ModelSpec, Term
 from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model, split_samples, score
 from identification.diagnosis.statistics import wilcoxon_p
 from neck_sim.cli import main
@@ -202,7 +202,7 @@ def test_look_alikes_are_told_apart_or_reported_together(monkeypatch):
 
 
 def test_accepted_out_of_range_forces_are_named_in_every_output(viscous_log, tmp_path, capsys):
-    """Issue 14 item 2: forces accepted on request are said in the summary, the JSON and the report."""
+    """Forces accepted on request are said in the summary, the JSON and the report."""
     _, path = viscous_log
     spiked = tmp_path / "spiked.mcap"
     seen = {"motors": 0}

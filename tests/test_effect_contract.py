@@ -2,6 +2,11 @@
 
 For each effect of :mod:`neck_sim.effects`:
 
+* its three audiences are there: the physics (:mod:`neck_sim.effects`), the columns
+  (:mod:`identification.diagnosis.columns`) and at least one hiding form of the blind-test
+  generator (:mod:`identification.diagnosis.blind_forms`), all under its name;
+* the columns read of the measured data only what :class:`ColumnData` states, and
+  :class:`MeasuredData` answers it;
 * a motor force is magnitude x regressor on random states;
 * where the effect is in the native kernel, the C callback gives the Python reference;
 * fitted values -> plant data (``to_plant``) -> the forces the plant's physics give (eqs 29, 30,
@@ -15,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import json
 import types
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -25,24 +31,115 @@ from neck_sim import plant as P
 from neck_sim.native import DISPATCH
 from neck_sim.params import default_params, example_params
 
-from identification.candidates import FitContext
-from identification.measured import MeasuredData
+from identification.diagnosis import blind_forms
+from identification.diagnosis import columns as IC
+from identification.diagnosis.columns import ColumnData, FitContext
 
 EFFECTS = E.registered()
 MOTOR = [c for c in EFFECTS if c.kind == "motor"]
 NATIVE = [c for c in MOTOR if c.baseline or c().native_fields(4) is not None]
-WITH_COLUMNS = [c for c in EFFECTS if c.columns and c.columns_exact]
-SIGNED = [c for c in EFFECTS if any(col.signed for col in c.columns)]
+WITH_COLUMNS = [c for c in EFFECTS if IC.get(c.name).columns and IC.get(c.name).columns_exact]
+SIGNED = [c for c in EFFECTS if any(col.signed for col in IC.get(c.name).columns)]
+#: every member of the data protocol: its fields and its methods
+PROTOCOL = set(ColumnData.__annotations__) | {k for k, v in vars(ColumnData).items() if callable(v) and k[0] != "_"}
 
 
 def ids(classes):
     return [c.name for c in classes]
 
 
+@pytest.mark.parametrize("cls", EFFECTS, ids=ids(EFFECTS))
+def test_every_effect_has_its_three_audiences(cls, rng):
+    """Physics, columns and a blind form under the effect's name; each form hides this effect."""
+    assert issubclass(cls, E.Effect) and E.get(cls.name) is cls and isinstance(cls(), cls)
+    cols = IC.get(cls.name)
+    assert cols.effect == cls.name and cols.effect_class() is cls
+    assert issubclass(cols, IC.MotorColumns) == issubclass(cls, E.MotorEffect)
+    forms = blind_forms.of_effect(cls.name)
+    assert forms
+    p = default_params(3)
+    for form in forms:
+        h = form.hide(p, rng, form.magnitude, 0, 1)
+        assert h.expect == cls.name and h.description and form.unit is not None
+        hidden = E.Effects.of(*h.effects)
+        hidden.check(h.params)
+        assert (cls.name in hidden.names()) or cls.baseline       # a baseline effect may be hidden by another law
+
+
+def test_registries_refuse_what_does_not_fit():
+    with pytest.raises(ValueError, match="no columns for effect 'gear_creep'"):
+        IC.get("gear_creep")
+    with pytest.raises(ValueError, match="unknown effect 'gear_creep'"):
+        IC.register(type("GearCreep", (IC.EffectColumns,), {"effect": "gear_creep"}))
+    with pytest.raises(ValueError, match="has columns already"):
+        IC.register(type("Again", (IC.MotorColumns,), {"effect": "viscous_friction"}))
+    with pytest.raises(TypeError, match="MotorColumns exactly when"):
+        IC.register(type("Wrong", (IC.EffectColumns,), {"effect": "viscous_friction"}))
+    with pytest.raises(ValueError, match="built-in"):
+        IC.unregister("payload")
+    with pytest.raises(ValueError, match="exists"):
+        blind_forms.register("payload", "payload", 1.0, "kg")
+    with pytest.raises(ValueError, match="must be 'payload' or 'payload:<variant>'"):
+        blind_forms.register("heavy_head", "payload", 1.0, "kg")
+    with pytest.raises(ValueError, match="unknown blind case 'gear_creep'"):
+        blind_forms.get("gear_creep")
+
+
+class _Only:
+    """``data`` seen through the members of :class:`ColumnData` alone: any other read fails."""
+
+    allowed: ClassVar[frozenset] = frozenset(PROTOCOL)
+
+    def __init__(self, data):
+        self._data = data
+
+    def __getattr__(self, name):
+        if name not in self.allowed:
+            raise AttributeError(f"the columns read {name!r}, which ColumnData does not state")
+        return getattr(self._data, name)
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """A short simulated log (one sequence of the identification trajectory) as MeasuredData."""
+    from identification.diagnosis.blind import excitation_trajectory, run_log
+    from identification.diagnosis.measured import MeasuredData
+    from neck_sim.logs import read_log
+
+    p = default_params(3)
+    path = tmp_path_factory.mktemp("protocol") / "short.mcap"
+    run_log(path, p, E.Effects(), trajectory=excitation_trajectory(p, sequences=1), seed=3, write_truth=False)
+    return MeasuredData.from_log(read_log(path))
+
+
+@pytest.mark.parametrize("cls", EFFECTS, ids=ids(EFFECTS))
+def test_columns_read_only_the_data_protocol(cls, measured, rng):
+    """Every hook that takes data runs on MeasuredData seen through ColumnData alone, with the
+    shapes the search tries, and gives arrays of the documented shapes."""
+    from identification.diagnosis.candidates import initial_state
+
+    assert isinstance(measured, ColumnData)
+    cols, d = IC.get(cls.name), _Only(measured)
+    S, n, C = measured.S, measured.n, measured.C
+    state = initial_state(measured)
+    shape = _shape(cls, rng)
+    design = cols.design(d, shape, FitContext(measured.x, state.tension_fast, state.tension))
+    p = sum(len(col.names(n, C)) for col in cols.columns)
+    assert design.torque.shape == (S, n, p) and design.cable.shape == (S, C, p)
+    assert np.all(np.isfinite(design.torque)) and np.all(np.isfinite(design.cable))
+    series = cols.fit_elongation_series(d, shape)
+    assert series is None or series.shape == (S, C)
+    offset = cols.fit_force_offset(d, shape)
+    assert offset is None or (offset[0].shape == measured.force_fast.shape and offset[1].shape == (S, C))
+    for sh in cols.shapes:
+        if sh.per_cable:
+            assert np.shape(cols.fit_cable_offset(d, 1, sh.bounds[1] / 2)) in ((), (S,))
+
+
 def _shape(cls, rng):
     """A shape other than the default: a grid point for searched shapes, an offset on cable 2."""
     out = {}
-    for sh in cls.shapes:
+    for sh in IC.get(cls.name).shapes:
         if sh.per_cable:
             out[f"{sh.name}_2"] = float(rng.uniform(*sh.bounds))
         else:
@@ -52,7 +149,7 @@ def _shape(cls, rng):
 
 def _magnitudes(cls, rng, n, m):
     out = {}
-    for col in cls.columns:
+    for col in IC.get(cls.name).columns:
         count = len(col.names(n, m))
         lo = 0.05                     # inside what to_plant keeps (it clips unphysical values)
         scale = {"N/m": 3000.0, "N s/m": 50.0, "kg": 0.05, "N": 8.0}.get(col.unit, 0.2)
@@ -90,30 +187,39 @@ def test_native_kernel_is_the_python_reference(cls, params, rng):
 
 
 def _fake_data(params, rng, S=60):
-    """What an effect's ``design`` reads from MeasuredData, on random states (no filter: to_slow = identity)."""
+    """The data protocol's members, exactly, on random states (no filter: to_slow = identity, the
+    control rate is the slow grid), and the elongations x (S, C) m of those states."""
     n, C = params.n_joints, params.n_cables
     alpha = rng.uniform(-0.4, 0.4, (S, n))
+    t = np.arange(S) * 0.01
+    cache = {}
+
+    def cached(key, compute):
+        if key not in cache:
+            cache[key] = compute()
+        return cache[key]
+
     d = types.SimpleNamespace(
-        S=S, n=n, C=C, params=params, alpha=alpha,
-        prep=types.SimpleNamespace(alpha_dot=rng.normal(0, 1, (S, n)), alpha_ddot=rng.normal(0, 5, (S, n))),
-        Z=an.transmission_matrix(alpha, params), x=rng.uniform(1e-3, 3e-3, (S, C)), x_dot=rng.normal(0, 5e-4, (S, C)),
-        theta_dot_fast=rng.normal(0, 20, (S, C)), to_slow=lambda v: v, _col_cache={})
-    d.cached = types.MethodType(MeasuredData.cached, d)
-    d.motor_basis = types.MethodType(MeasuredData.motor_basis, d)
-    return d
+        S=S, n=n, C=C, params=params, t=t, t_fast=t, dt=0.01, ratio=params.actuation.R / params.actuation.r_d,
+        alpha=alpha, alpha_dot=rng.normal(0, 1, (S, n)), alpha_ddot=rng.normal(0, 5, (S, n)),
+        Z=an.transmission_matrix(alpha, params), x_dot=rng.normal(0, 5e-4, (S, C)),
+        theta_fast=rng.normal(0, 2, (S, C)), theta_dot_fast=rng.normal(0, 20, (S, C)), to_slow=lambda v: v,
+        cached=cached)
+    assert set(vars(d)) == PROTOCOL
+    return d, rng.uniform(1e-3, 3e-3, (S, C))
 
 
-def _observations(d, params, effects, elastic, nominal):
+def _observations(d, x, params, effects, elastic, nominal):
     """Cable block y_C = f_motor + t (N) and torque block Z f_motor + linkage change (N m) of the
     plant's physics: eq (37) + motor effects at the data's motor speed, eq (54) tension at the
     data's elongation (plus rest elongations), linkage eq (30) against the nominal one."""
     w = d.theta_dot_fast
     C = d.C
-    x = d.x + effects.elongation_offset(C)
+    x = x + effects.elongation_offset(C)
     t = an.cable_tension(x, d.x_dot, params) if elastic else np.zeros_like(x)
     f = an.motor_friction(w, params) + sum((e.motor_force(w, t) for e in effects.motor_effects()), np.zeros_like(w))
-    lk, lk0 = (an.linkage_dynamics(d.alpha, d.prep.alpha_dot, p) for p in (params, nominal))
-    dl = np.einsum("sij,sj->si", lk.M - lk0.M, d.prep.alpha_ddot) + (lk.c - lk0.c) + (lk.g - lk0.g)
+    lk, lk0 = (an.linkage_dynamics(d.alpha, d.alpha_dot, p) for p in (params, nominal))
+    dl = np.einsum("sij,sj->si", lk.M - lk0.M, d.alpha_ddot) + (lk.c - lk0.c) + (lk.g - lk0.g)
     dl = dl + _mujoco_spring_torque(d.alpha, params, effects) - _mujoco_spring_torque(d.alpha, params, E.Effects())
     return f + t, np.einsum("sij,sj->si", d.Z, f) + dl, t
 
@@ -150,38 +256,40 @@ def test_fitted_values_to_plant_give_the_columns_forces(cls, neck, rng):
     n, m = p.n_joints, p.n_cables
     # linear cables in the nominal model, so that each cable effect alone is linear (eq 54, lambda = 0)
     nominal = p.replace(**{"cables.lam": (0.0,) * m, "cables.t_cap": 1e4})
-    d = _fake_data(nominal, rng)
+    d, x = _fake_data(nominal, rng)
+    cols = IC.get(cls.name)
     shape, values = _shape(cls, rng), _magnitudes(cls, rng, n, m)
     base = nominal
-    for other in E.registered():            # without: no friction, rigid cables unless this adds to them
-        if other is not cls and other.baseline and other.name not in cls.requires:
+    for other in IC.registered():           # without: no friction, rigid cables unless this adds to them
+        if other is not cols and other.effect_class().baseline and other.effect not in cls.requires:
             base = other.when_absent(base, True)
-    base = cls.when_absent(base, True)
-    params, extra = cls.to_plant(base, values, shape)
+    base = cols.when_absent(base, True)
+    params, extra = cols.to_plant(base, values, shape)
     with_eff = E.Effects.of(extra) if extra is not None else E.Effects()
-    yC1, yT1, t1 = _observations(d, params, with_eff, True, nominal)
+    yC1, yT1, t1 = _observations(d, x, params, with_eff, True, nominal)
     # without the effect: the same plant, rigid cables when the effect is what makes them elastic
-    yC0, yT0, _ = _observations(d, base, E.Effects(), not cls.elastic_cables, nominal)
-    design = cls.design(d, shape, FitContext(d.x, t1, t1))
-    v = np.concatenate([np.ravel(values[col.symbol]) for col in cls.columns])
+    yC0, yT0, _ = _observations(d, x, base, E.Effects(), not cols.elastic_cables, nominal)
+    design = cols.design(d, shape, FitContext(x, t1, t1))
+    v = np.concatenate([np.ravel(values[col.symbol]) for col in cols.columns])
     np.testing.assert_allclose(design.cable @ v, yC1 - yC0, rtol=1e-9, atol=1e-9 * np.abs(yC1).max())
     np.testing.assert_allclose(design.torque @ v, yT1 - yT0, rtol=1e-9, atol=1e-9 * np.abs(yT1).max())
 
 
 def test_shifting_effects_reach_the_plant_as_fitted(rng):
     """Effects without columns: the rest elongations and the delay the fit uses are the plant's."""
-    shifting = [c for c in EFFECTS if not c.columns]
+    shifting = [c for c in EFFECTS if not IC.get(c.name).columns]
     assert {c.kind for c in shifting} >= {"elongation", "command", "camera", "encoder"}
     for cls in shifting:
+        cols = IC.get(cls.name)
         shape = _shape(cls, rng)
-        params, eff = cls.to_plant(default_params(3), {}, shape)
+        params, eff = cols.to_plant(default_params(3), {}, shape)
         assert eff is not None and params == default_params(3)
-        np.testing.assert_array_equal(eff.elongation_offset(4), cls.fit_elongation_offset(shape, 4))
-        assert eff.command_delay == cls.fit_delay(shape)
-        assert eff.camera_delay == cls.fit_camera_shift(shape)
+        np.testing.assert_array_equal(eff.elongation_offset(4), cols.fit_elongation_offset(shape, 4))
+        assert eff.command_delay == cols.fit_delay(shape)
+        assert eff.camera_delay == cols.fit_camera_shift(shape)
         band = eff.encoder_band(4)
         if cls.kind == "encoder":      # the fit's per-cable band is the plant's (shape key <name>_2)
-            sh = next(s for s in cls.shapes if s.per_cable)
+            sh = next(s for s in cols.shapes if s.per_cable)
             assert band[1] == shape[f"{sh.name}_2"] and np.count_nonzero(band) == 1
         assert np.any(eff.elongation_offset(4) != 0) or eff.command_delay > 0 or eff.camera_delay > 0 or np.any(band > 0)
 
@@ -195,12 +303,14 @@ def test_encoder_effects_offset_the_elongation_the_plant_has(cls, rng):
     the encoders the plant reports minus its true motor-slide (drum) positions, in m of cable, is
     the lead the fit computes from those encoders (``fit_cable_offset`` is minus it), to within the
     plant's finite swing across the band (the drum moves 1/SWING of the band meanwhile)."""
-    from neck_sim.effects.backlash import SWING, motor_lead
+    from identification.diagnosis.columns.backlash import motor_lead
+    from neck_sim.effects.backlash import SWING
 
     p = default_params(3)
-    sh = next(s for s in cls.shapes if s.per_cable)
+    cols = IC.get(cls.name)
+    sh = next(s for s in cols.shapes if s.per_cable)
     band = 0.5e-3
-    _, eff = cls.to_plant(p, {}, {f"{sh.name}_2": band})
+    _, eff = cols.to_plant(p, {}, {f"{sh.name}_2": band})
     plant = P.Plant(p, effects=E.Effects.of(eff), seed=0)
     plant.reset()
     ratio = p.actuation.R / p.actuation.r_d
@@ -225,10 +335,11 @@ def test_encoder_effects_offset_the_elongation_the_plant_has(cls, rng):
 def test_names_units_and_json(cls):
     assert cls.name in E.names() and E.get(cls.name) is cls
     assert cls.description and "\n" not in cls.description and cls.__doc__ and len(cls.__doc__) > 60
-    for col in cls.columns:
+    cols = IC.get(cls.name)
+    for col in cols.columns:
         assert col.symbol and col.unit and len(col.names(3, 4)) == {"cable": 4, "joint": 3, "spring": 6, "one": 1}[col.per]
         assert len(col.names(10, 4)) == {"cable": 4, "joint": 10, "spring": 20, "one": 1}[col.per]
-    for sh in cls.shapes:
+    for sh in cols.shapes:
         assert sh.name and sh.unit
     eff = cls()
     text = json.dumps(E.Effects.of(eff).to_dict())
@@ -238,28 +349,33 @@ def test_names_units_and_json(cls):
         assert need in E.names() and list(E.names()).index(need) < list(E.names()).index(cls.name)
 
 
-@pytest.mark.parametrize("cls", [c for c in EFFECTS if c.shapes], ids=ids([c for c in EFFECTS if c.shapes]))
+SHAPED = [c for c in EFFECTS if IC.get(c.name).shapes]
+
+
+@pytest.mark.parametrize("cls", SHAPED, ids=ids(SHAPED))
 def test_default_shape_lies_inside_its_grid(cls):
-    for sh in cls.shapes:
+    cols = IC.get(cls.name)
+    for sh in cols.shapes:
         if sh.per_cable:          # the search range holds "absent" (0)
             assert sh.default is None and sh.bounds[0] <= 0 < sh.bounds[1]
         else:
             assert sh.grid and min(sh.grid) <= sh.default <= max(sh.grid), sh
             assert list(sh.grid) == sorted(set(sh.grid))
-    assert dict(cls.default_shape()).keys() == {sh.name for sh in cls.shapes if not sh.per_cable}
+    assert dict(cols.default_shape()).keys() == {sh.name for sh in cols.shapes if not sh.per_cable}
 
 
 @pytest.mark.parametrize("cls", SIGNED, ids=ids(SIGNED))
 def test_sign_constraint_rejects_a_wrong_signed_fit(cls, rng):
-    col = next(c for c in cls.columns if c.signed)
+    cols = IC.get(cls.name)
+    col = next(c for c in cols.columns if c.signed)
     count = len(col.names(3, 4))
-    good = {c.symbol: rng.uniform(1.0, 2.0, len(c.names(3, 4))) for c in cls.columns}
-    sig = {c.symbol: np.full(len(c.names(3, 4)), 0.01) for c in cls.columns}
-    assert cls.sign_violation(good, sig) == ""
+    good = {c.symbol: rng.uniform(1.0, 2.0, len(c.names(3, 4))) for c in cols.columns}
+    sig = {c.symbol: np.full(len(c.names(3, 4)), 0.01) for c in cols.columns}
+    assert cols.sign_violation(good, sig) == ""
     bad = dict(good)
     bad[col.symbol] = good[col.symbol].copy()
     bad[col.symbol][count - 1] = -1.5
-    msg = cls.sign_violation(bad, sig)
+    msg = cols.sign_violation(bad, sig)
     assert col.symbol in msg and cls.name in msg
     noisy = {k: v.copy() for k, v in bad.items()}
-    assert cls.sign_violation(noisy, {k: np.full(v.size, 1.0) for k, v in noisy.items()}) == ""   # |z| < 4
+    assert cols.sign_violation(noisy, {k: np.full(v.size, 1.0) for k, v in noisy.items()}) == ""   # |z| < 4

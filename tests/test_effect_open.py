@@ -1,8 +1,10 @@
 """The vocabulary is open: an effect defined and registered here, in the test file only, is hidden
 in the plant, found, fitted, reported and written to the extended model with no edit to any other
-file (issue 11, item 2); and an effect can act on the camera timing.
+file; and an effect can act on the camera timing.
 
-The toy effect is a constant force bias along one cable.  The plant hides it MuJoCo-natively (a
+The toy effect is a constant force bias along one cable, registered for its three audiences: its
+physics (:mod:`neck_sim.effects`), its columns (:mod:`identification.diagnosis.columns`) and a
+blind form (:mod:`identification.diagnosis.blind_forms`).  The plant hides it MuJoCo-natively (a
 generalised force on the motor slide, ``qfrc_applied``, set by the effect's ``setup_mujoco``); the
 diagnosis finds it through its regressor column (a constant per cable) -- two mechanisms.
 """
@@ -16,9 +18,12 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from identification.diagnosis import blind_forms
+from identification.diagnosis import columns as IC
 from neck_sim import effects as E
-from neck_sim.effects.base import Column, MotorEffect, indices, per_item
+from neck_sim.effects.base import MotorEffect
 from neck_sim.params import default_params
+from neck_sim.validation import indices, per_item
 
 
 @dataclass(frozen=True)
@@ -31,7 +36,6 @@ class CableBias(MotorEffect):
     description: ClassVar[str] = "a constant force along a cable"
     kind: ClassVar[str] = "mujoco"              # not a callback force: MuJoCo applies it
     magnitude_field: ClassVar[str] = "bias"
-    columns: ClassVar[tuple] = (Column("bias", "N", signed=False),)
     bias: tuple | float = 3.0
     cables: tuple | None = None
 
@@ -45,6 +49,20 @@ class CableBias(MotorEffect):
     def setup_mujoco(self, model, data, index):
         # the motor slide is in cable-length units: its generalised force is N along the cable
         data.qfrc_applied[index.dof_motor] = -self.per_cable(len(index.dof_motor))
+
+
+class CableBiasColumns(IC.MotorColumns):
+    """One column per cable: the bias (N), either sign."""
+
+    effect: ClassVar[str] = "cable_bias"
+    columns: ClassVar[tuple] = (IC.Column("bias", "N", signed=False),)
+
+
+def hide_bias(params, rng, magnitude, cable, joint):
+    """The blind form: a bias of either sign on one cable."""
+    bias = float(rng.choice([-1, 1]) * magnitude)
+    return blind_forms.Hidden(params, (CableBias(bias=bias, cables=(cable,)),), (cable,), (), f"bias {bias:+.1f} N",
+                              CableBias.name)
 
 
 @dataclass(frozen=True)
@@ -65,17 +83,21 @@ class CameraLag(E.Effect):
 def registered():
     for cls in (CableBias, CameraLag):
         E.register(cls)
+    IC.register(CableBiasColumns)
+    blind_forms.register(CableBias.name, CableBias.name, 4.0, "N")(hide_bias)
     yield
+    blind_forms.unregister(CableBias.name)
+    IC.unregister(CableBias.name)
     for cls in (CableBias, CameraLag):
         E.unregister(cls.name)
-    assert "cable_bias" not in E.names()
+    assert "cable_bias" not in E.names() + IC.names() + tuple(blind_forms.forms())
 
 
 @pytest.fixture(scope="module")
 def bias_logs(registered, tmp_path_factory):
     """seed -> (cable, bias N, log path): the bias on a right cable and with a sign drawn from the seed
     (the long left cable is soft and stiffens strongly: its law absorbs offsets, as for the pretension)."""
-    from identification.blind import run_log
+    from identification.diagnosis.blind import run_log
 
     out = {}
     for seed in (1, 2):
@@ -98,6 +120,19 @@ def test_registry_refuses_bad_effects(registered):
         E.unregister("payload")
     with pytest.raises(ValueError, match="unknown effect 'gear_creep'"):
         E.Effects(gear_creep=CableBias())
+    with pytest.raises(ValueError, match="'check' is an attribute of Effects"):
+        E.register(type("Check", (CableBias,), {"name": "check"}))
+
+
+def test_a_new_effect_is_a_blind_case(registered):
+    """Its blind form is a case of the generator: drawn from a seed, expecting the new effect."""
+    from identification.diagnosis.blind import hidden_effect
+
+    assert "cable_bias" in blind_forms.forms()
+    case = hidden_effect("cable_bias", 1)
+    assert case.expect == "cable_bias" and case.effects.cable_bias is not None
+    assert abs(case.effects.cable_bias.bias) == pytest.approx(case.magnitude)
+    assert case.model == E.paper_model()
 
 
 def _leader(verdict) -> str:
@@ -106,7 +141,7 @@ def _leader(verdict) -> str:
 
 
 def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, capsys):
-    from identification.candidates import plant_model
+    from identification.diagnosis.candidates import plant_model
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from neck_sim.cli import main
 
@@ -115,7 +150,7 @@ def test_a_new_effect_is_found_fitted_reported_and_written(bias_logs, tmp_path, 
     js, rep, ext = tmp_path / "d.json", tmp_path / "report", tmp_path / "model.json"
     assert main(["diagnose", str(path), "--steps", "1", "--json", str(js), "--report", str(rep),
                  "--extended", str(ext), "--quiet"]) == 0
-    # the leader of the verdict: since the open-world diagnosis (issue 12) spring_error is listed
+    # the leader of the verdict: since the open-world diagnosis spring_error is listed
     # beside it (each adds to the other: a torque on the cable's joint) and leftover structure as
     # 'unexplained'; the finding's fit and the extended model are the bias's
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("verdict: "))

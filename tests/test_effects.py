@@ -134,3 +134,20 @@ def test_parameters_expand_per_cable():
     np.testing.assert_allclose(eff.parameters(4)["viscous_friction.c_v"], [0, 0.3, 0, 0])
     assert eff.parameters()["viscous_friction.c_v"] == 0.3
     assert E.DryFriction().parameters(4)["dry_friction.f_s"] is None
+
+
+@pytest.mark.parametrize("name", ["check", "names", "active", "replace", "dry_friction"])
+def test_register_refuses_a_name_taken_by_effects_or_another_effect(name):
+    """``effects.<name>`` must reach the effect: no name of an Effects attribute nor of another effect."""
+    cls = type("Clash", (E.ViscousFriction,), {"name": name, "__doc__": "A clash."})
+    with pytest.raises(ValueError, match=f"{name!r} (is an attribute of Effects|exists)"):
+        E.register(cls)
+    assert E.get("dry_friction") is E.DryFriction and "check" not in E.names()
+
+
+def test_requires_are_names():
+    cls = type("Needy", (E.ViscousFriction,), {"name": "needy_friction", "requires": (E.DryFriction,),
+                                                "__doc__": "Requires a class, not a name."})
+    with pytest.raises(TypeError, match="requires must hold effect names"):
+        E.register(cls)
+    assert all(isinstance(r, str) for c in E.registered() for r in c.requires)

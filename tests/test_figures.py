@@ -203,7 +203,7 @@ def test_reproduce_report_orders_and_captions_figures_as_the_paper():
 def test_resimulation_scale_follows_the_final_model_and_marks_a_diverged_baseline():
     from types import SimpleNamespace
 
-    from identification.report import _resim_scale
+    from identification.diagnosis.report import _resim_scale
 
     t = np.linspace(0, 10, 101)
     data = SimpleNamespace(prep=SimpleNamespace(fast=SimpleNamespace(theta=np.outer(np.sin(t), [20.0, 10.0]))),

@@ -2,7 +2,7 @@
 
 ``diagnose_log(log)`` reads only the measured topics of a log (motors, camera) and its ``neck``
 record and runs, from a baseline model (the paper's: arctan friction + variable-stiffness cables,
-or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25):
+or any :class:`~identification.diagnosis.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25):
 
 1. **Split** (:func:`split_samples`) the slow-grid samples into contiguous blocks of about three
    moves (half a §5.2.2 sequence), cut in the middle of holds found from the motor speeds, and
@@ -11,7 +11,7 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
    folds, so every sample is held out once.  The *primary* split (train on folds 0 and 2, hold
    out fold 1) gives the parameters, the shape searches, the training F-test, the written model
    and the alpha_hat and re-simulation comparisons.
-2. **Baseline**: fit the model (:func:`identification.candidates.fit_model`) and evaluate its
+2. **Baseline**: fit the model (:func:`identification.diagnosis.candidates.fit_model`) and evaluate its
    residuals -- joint torque (eq 51), cable tension (eq 42/54, N) and elongation (m) --,
    alpha_hat against the camera (eq 35 with the model's elongation) and an open-loop
    re-simulation of the plant driven by the logged forces.
@@ -41,7 +41,7 @@ or any :class:`~identification.candidates.ModelSpec`, e.g. ``"rigid"`` for eq 25
    B, A stands; if A adds nothing to B but B adds to A, B replaces A; if neither adds to the other
    the data cannot tell them apart and the verdict lists both (ambiguous), never a guess.
 5. **Extension and gain**: the model plus the verdict is written as plant parameters and effects
-   (:func:`identification.candidates.plant_model`) and compared with the baseline on held-out
+   (:func:`identification.diagnosis.candidates.plant_model`) and compared with the baseline on held-out
    data: cross-validated residual RMS per type, alpha_hat error against the camera, re-simulation
    error in theta and alpha.  Forward selection repeats 3-5 from the extended model until nothing
    significant remains (at most ``max_steps`` findings).

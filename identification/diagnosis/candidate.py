@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, Term
+from identification.diagnosis.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import search_shape, shape_grid
 from identification.diagnosis.statistics import block_scores, in_band, score
@@ -60,8 +60,8 @@ class CandidateScore:
 def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
     """False when a clearly non-zero magnitude of ``term`` has the unphysical sign (the effect's
     ``sign_violation``): the candidate then only reshapes another effect."""
-    symbols = [col.symbol for col in term.effect.columns if fit.has(col.symbol)]
-    why = term.effect.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    symbols = [col.symbol for col in term.identification.columns if fit.has(col.symbol)]
+    why = term.identification.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
     return not why, why
 
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, FitState, MeasuredData, ModelSpec, fit_model
+from identification.diagnosis.candidates import Fit, FitState, MeasuredData, ModelSpec, fit_model
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis.statistics import (Comparison, chunk_reductions, effective_samples, f_test_p,

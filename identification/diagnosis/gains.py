@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.candidates import Fit, MeasuredData, elongation_offsets
+from identification.diagnosis.candidates import Fit, MeasuredData, elongation_offsets
 from neck_sim.analytic.dynamics import cable_stiffness, static_elongation
 
 
@@ -120,7 +120,7 @@ def alpha_hat_errors(data: MeasuredData, fits, holdout: np.ndarray, step: int = 
     out = []
     for b in range(B):
         # a model with a camera delay compares the frame stamped t + delay with alpha_hat(t)
-        tc = tc_all - sum(t.effect.fit_camera_shift(dict(t.shape)) for t in fits[b].model.terms)
+        tc = tc_all - sum(t.identification.fit_camera_shift(dict(t.shape)) for t in fits[b].model.terms)
         inside = (tc >= tq[0]) & (tc <= tq[-1])
         tc, ac = tc[inside], ac_all[inside]
         held_out = np.interp(tc, data.t, holdout.astype(float)) > 0.5

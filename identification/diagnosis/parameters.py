@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, Term
+from identification.diagnosis.candidates import Fit, Term
 from identification.diagnosis.candidate import CandidateScore
 from identification.diagnosis.fitting import StepContext
 from identification.diagnosis.statistics import clearly_nonzero, score
@@ -32,7 +32,7 @@ class Parameter:
 def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
     """1-based items (``per`` = "cable" or "joint") whose magnitude (the effect's first column) is
     clearly non-zero; None when that column is not one per such item."""
-    cols = term.effect.columns
+    cols = term.identification.columns
     # per-spring magnitudes (2 per joint: left, right) locate joints
     items_per = {per: 1, "spring": 2} if per == "joint" else {per: 1}
     if not cols or cols[0].per not in items_per or not fit.has(cols[0].symbol):
@@ -44,7 +44,7 @@ def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
 def _per_cable_keys(term: Term) -> dict[str, tuple]:
     """Shape key -> (Shape, 1-based cable) for the per-cable shapes of ``term`` (rest elongations)."""
     out = {}
-    for sh in term.effect.shapes:
+    for sh in term.identification.shapes:
         if sh.per_cable:
             out.update({k: (sh, int(k[len(sh.name) + 1:])) for k, _ in term.shape if k.startswith(sh.name + "_")})
     return out
@@ -52,7 +52,7 @@ def _per_cable_keys(term: Term) -> dict[str, tuple]:
 
 def cables_of(fit: Fit, term: Term) -> list[int] | None:
     """1-based cables the effect concerns: per-cable magnitudes clearly non-zero
-    (:func:`neck_sim.effects.clearly_nonzero`), the cables of a per-cable shape (pretension); None
+    (:func:`identification.diagnosis.statistics.clearly_nonzero`), the cables of a per-cable shape (pretension); None
     for effects not per cable."""
     keys = _per_cable_keys(term)
     if keys:
@@ -107,13 +107,13 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
     have sigma None, except those with a ``Shape.profile_step`` (the delay, the rest elongations:
     profile of the training score)."""
     fit, term = cand.fit, cand.term
-    sym = {col.symbol for col in term.effect.columns}
+    sym = {col.symbol for col in term.identification.columns}
     out = {}
     for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma):
         if n.split("(")[0] in sym:
             out[n] = Parameter(float(v), float(s), u)
     per_cable = _per_cable_keys(term)
-    shapes = {sh.name: sh for sh in term.effect.shapes}
+    shapes = {sh.name: sh for sh in term.identification.shapes}
     for k, v in term.shape:
         sh, name = (per_cable[k][0], f"{per_cable[k][0].name}({per_cable[k][1]})") if k in per_cable \
             else (shapes.get(k), k)

@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from identification.candidates import MeasuredData, plant_model
+from identification.diagnosis.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.gains import alpha_hat_errors, residual_rms
 from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, shape_located, term_parameters

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.candidates import MeasuredData
+from identification.diagnosis.candidates import MeasuredData
 from identification.diagnosis.gains import rms
 from identification.diagnosis.split import Split
 from neck_sim.params import NeckParams

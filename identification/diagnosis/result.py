@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import Fit, MeasuredData, ModelSpec, plant_model
+from identification.diagnosis.candidates import Fit, MeasuredData, ModelSpec, plant_model
 from identification.diagnosis.candidate import CandidateScore
 from identification.diagnosis.gains import AlphaHatErrors, ResidualRMS
 from identification.diagnosis.parameters import Parameter, all_parameters

@@ -8,14 +8,14 @@ from itertools import product
 import numpy as np
 from scipy import optimize
 
-from identification.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
+from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
+from identification.diagnosis import columns as effect_columns
+from identification.diagnosis.columns import Shape
 from identification.diagnosis.statistics import effective_samples, f_test_p, score
-from neck_sim import effects as effect_registry
 from neck_sim.analytic.dynamics import cable_stiffness
-from neck_sim.effects import Shape
 
 
 def shape_grid(name: str) -> list[tuple]:
@@ -30,7 +30,7 @@ def shape_grid(name: str) -> list[tuple]:
 def refined_shape(name: str) -> Shape | None:
     """The shape parameter of effect ``name`` refined by a bounded search between the best grid
     point's neighbours (``Shape.refine``: log scale for rates, linear for the delay), if any."""
-    return next((sh for sh in effect_registry.get(name).shapes if sh.refine), None)
+    return next((sh for sh in effect_columns.get(name).shapes if sh.refine), None)
 
 
 def minimise_bounded(f, lo: float, hi: float, xatol: float) -> float:
@@ -43,7 +43,7 @@ def search_shape(ctx: StepContext, name: str, trial):
     (:func:`search_per_cable_offset`), else over its shape grid with the refined shape
     (``Shape.refine``) then searched between the best grid point's neighbours (bounded, to 2 % of
     that interval on the shape's scale); None when nothing fits."""
-    per_cable = next((sh for sh in effect_registry.get(name).shapes if sh.per_cable), None)
+    per_cable = next((sh for sh in effect_columns.get(name).shapes if sh.per_cable), None)
     if per_cable is not None:
         return search_per_cable_offset(ctx, trial, name, per_cable)
     entries = [trial(Term(name, shape)) for shape in shape_grid(name)]
@@ -99,7 +99,7 @@ def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
     the term keeps the cables whose offset passes an F-test at 1 % on that cable's rows, else the
     best single cable."""
     data = ctx.data
-    offset = effect_registry.get(name).fit_cable_offset      # the trial offset of a shape value
+    offset = effect_columns.get(name).fit_cable_offset      # the trial offset of a shape value
     found = []
     for j in range(data.C):
         x = minimise_bounded(lambda v, j=j: _cable_law_score(ctx, j, offset(data, j, v)), *shape.bounds, xatol=1e-7)

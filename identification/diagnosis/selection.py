@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.candidates import FitState, MeasuredData, ModelSpec
+from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec
 from neck_sim import effects as effect_registry
 from identification.diagnosis.candidate import CandidateScore, evaluate_candidate
 from identification.diagnosis.fitting import Evaluated, StepContext, fit_baseline

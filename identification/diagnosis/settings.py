@@ -6,7 +6,7 @@ import json
 import os
 from dataclasses import dataclass, field
 
-from identification.candidates import ModelSpec, effect_names, paper_model
+from identification.diagnosis.candidates import ModelSpec, effect_names, paper_model
 from identification.diagnosis.support import SupportSettings
 from identification.preprocessing import PreprocessSettings
 from neck_sim.effects import CableElasticity, DryFriction

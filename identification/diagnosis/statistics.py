@@ -8,16 +8,27 @@ the baseline's per-channel training RMS.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
-from identification.diagnosis.split import Split
-from neck_sim.effects.base import clearly_nonzero   # the one rule, beside the effects' sign checks
+if TYPE_CHECKING:      # a pure module: the split only types an argument
+    from identification.diagnosis.split import Split
 
 __all__ = ["mean_square", "channel_weights", "score", "block_scores", "chunk_reductions", "wilcoxon_p", "improvement",
            "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome", "margin_ratio",
            "decades_below", "in_band"]
+
+
+def clearly_nonzero(value, sigma) -> np.ndarray:
+    """Which fitted magnitudes are clearly non-zero: |z| >= 4 and at least 25 % of the largest.
+
+    The one rule by which the diagnosis locates an effect (its cables or joints) and checks its
+    physical sign.  ``value``, ``sigma`` (p,) -> (p,) bool.
+    """
+    v, s = np.asarray(value, dtype=float), np.asarray(sigma, dtype=float)
+    return (np.abs(v) >= 4 * s) & (np.abs(v) >= 0.25 * np.abs(v).max(initial=0.0))
 
 
 def mean_square(res: np.ndarray, mask: np.ndarray) -> np.ndarray:

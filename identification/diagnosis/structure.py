@@ -99,7 +99,7 @@ def state_features(data, tension: np.ndarray) -> tuple[tuple[str, ...], np.ndarr
     rho = sd(noise) / sd(feature), 0.5-0.7 for the camera's alpha_ddot on slow moves), which is no
     structure of the model.  The joint angle's noise (about 1 deg against ranges of tens of
     degrees) leaves it a few hundredths."""
-    from neck_sim.effects.joint_friction import joint_speed_from_encoders
+    from identification.diagnosis.columns.joint_friction import joint_speed_from_encoders
 
     p = data.prep
     C, n = data.C, data.n
@@ -210,7 +210,7 @@ def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
     borderline band of the margins (relative)."""
     s = settings or StructureSettings()
     min_rho = s.min_rho_named if named else s.min_rho
-    shift = sum(t.effect.fit_camera_shift(dict(t.shape)) for t in fit.model.terms)
+    shift = sum(t.identification.fit_camera_shift(dict(t.shape)) for t in fit.model.terms)
     d = data.camera_shifted(shift)
     names, feats = state_features(d, fit.tension_hat)
     ch_names, ch_units = _channel_names(d.n, d.C)

@@ -1,7 +1,7 @@
 """What a log can separate, checked before anything is named (``insufficient_excitation``).
 
 Pure functions of the measured data on the slow grid (a
-:class:`~identification.measured.MeasuredData`):
+:class:`~identification.diagnosis.measured.MeasuredData`):
 
 * the usable length (the slow grid after trimming) -- the split needs two blocks per fold;
 * per cable: the motor speed reached (95th percentile of |theta_dot|, rad/s), the reversals

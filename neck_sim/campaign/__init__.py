@@ -1,7 +1,7 @@
 """Campaigns: many independent jobs on a standard ``concurrent.futures`` executor.
 
 The generic executor that closed-loop runs (:mod:`controllers.parallel`), blind-log generation
-(:mod:`identification.blind`) and the benchmarks share; it knows nothing of what the jobs do.
+(:mod:`identification.diagnosis.blind`) and the benchmarks share; it knows nothing of what the jobs do.
 
 Where the jobs run is one small, picklable choice, :class:`ExecutorSpec`:
 

@@ -42,7 +42,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
-    from identification.report import REPORT_FILES, format_summary, write_report
+    from identification.diagnosis.report import REPORT_FILES, format_summary, write_report
     from neck_sim.logs import read_log
     from neck_sim.logs.reader import require_camera_frames
 

@@ -10,11 +10,15 @@ def add_arguments(parser) -> None:
 
 
 def describe(cls) -> tuple[str, str, str, str]:
-    """(parameters, shapes, requires, plant) of an effect class, as text."""
-    params = ", ".join(f"{c.symbol} [{c.unit}]" + ("" if c.per == "one" else f" per {c.per}") for c in cls.columns)
+    """(parameters, shapes, requires, plant) of an effect class, as text (its fitted parameters
+    and shapes from its columns, none when the diagnosis has no columns for it)."""
+    from identification.diagnosis import columns
+
+    fit = columns.get(cls.name) if cls.name in columns.names() else columns.EffectColumns
+    params = ", ".join(f"{c.symbol} [{c.unit}]" + ("" if c.per == "one" else f" per {c.per}") for c in fit.columns)
     shapes = ", ".join(f"{s.name} [{s.unit}]" + (f" {s.default:g} in {list(s.grid)}" if s.grid else
                                                  f" per cable in {list(s.bounds)}" if s.per_cable else "")
-                       for s in cls.shapes)
+                       for s in fit.shapes)
     plant = cls.kind + (" (paper's model)" if cls.baseline else "")
     return params or "-", shapes or "-", ", ".join(cls.requires) or "-", plant
 

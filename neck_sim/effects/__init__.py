@@ -2,10 +2,12 @@
 
 Each module of this package defines one effect class (the protocol is in
 :mod:`neck_sim.effects.base`): its name and description, parameters with units and signs, its
-force law for the plant, its regressor columns and shape parameters for the diagnosis, how a
-fitted result maps back to plant data, its prerequisites, and how the blind tests hide it.  The
-plant, the diagnosis, the blind-log generator, the reports and the command line iterate over
-:func:`registered`; nothing else lists effect names.
+force law for the plant and its prerequisites (``requires``, by name).  The effect's other two
+audiences are keyed by its name: its regressor columns, shape parameters and the map of a fitted
+result back to plant data in :mod:`identification.diagnosis.columns`, how the blind tests hide it
+in :mod:`identification.diagnosis.blind_forms`.  The plant, the diagnosis, the blind-log
+generator, the reports and the command line iterate over :func:`registered`; nothing else lists
+effect names.
 
 A new effect is a new class registered with :func:`register` (see ``docs/adding-an-effect.md``);
 the registry order is the report order.  ``dry_friction``, ``cable_elasticity`` and
@@ -21,14 +23,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from neck_sim.effects.actuation_delay import ActuationDelay
-from neck_sim.effects.backlash import BACKLASH_RANGE, Backlash
-from neck_sim.effects.base import Column, Design, Effect, Hidden, MotorEffect, Shape, clearly_nonzero
+from neck_sim.effects.backlash import Backlash
+from neck_sim.effects.base import Effect, MotorEffect
 from neck_sim.effects.cable_elasticity import CableElasticity
 from neck_sim.effects.camera_delay import CameraDelay
 from neck_sim.effects.dry_friction import DryFriction
 from neck_sim.effects.joint_friction import JointFriction
 from neck_sim.effects.payload import Payload
-from neck_sim.effects.pretension import PRETENSION_RANGE, Pretension
+from neck_sim.effects.pretension import Pretension
 from neck_sim.effects.pulley_friction import PulleyFriction
 from neck_sim.effects.spring_error import SpringError
 from neck_sim.effects.stribeck_friction import StribeckFriction
@@ -36,11 +38,11 @@ from neck_sim.effects.tension_stiffening import TensionStiffening
 from neck_sim.effects.viscous_friction import ViscousFriction
 from neck_sim.params import NeckParams
 
-__all__ = ["Effect", "MotorEffect", "Column", "Shape", "Design", "Hidden", "clearly_nonzero", "register",
-           "unregister", "registered", "get", "names", "paper_model", "NONE", "UNEXPLAINED", "INSUFFICIENT_EXCITATION", "VOCABULARY", "EFFECT_TYPES",
-           "make_effect", "Effects", "DryFriction", "ViscousFriction", "StribeckFriction", "PulleyFriction",
-           "CableElasticity", "TensionStiffening", "Payload", "SpringError", "ActuationDelay", "Pretension",
-           "PRETENSION_RANGE", "JointFriction", "CameraDelay", "Backlash", "BACKLASH_RANGE"]
+__all__ = ["Effect", "MotorEffect", "register", "unregister", "registered", "get", "names", "paper_model", "NONE",
+           "UNEXPLAINED", "INSUFFICIENT_EXCITATION", "VOCABULARY", "EFFECT_TYPES", "make_effect", "Effects",
+           "DryFriction", "ViscousFriction", "StribeckFriction", "PulleyFriction", "CableElasticity",
+           "TensionStiffening", "Payload", "SpringError", "ActuationDelay", "Pretension", "JointFriction",
+           "CameraDelay", "Backlash"]
 
 NONE = "none"
 """The verdict when the model explains the data."""
@@ -57,7 +59,9 @@ _REGISTRY: dict[str, type[Effect]] = {}
 def register(cls: type[Effect]) -> type[Effect]:
     """Add an effect class to the vocabulary (usable as a class decorator); returns it.
 
-    Its ``name`` must be a new identifier and its ``requires`` already registered.
+    Its ``name`` must be a new identifier that is no attribute of :class:`Effects` (``check``,
+    ``names``, ...: ``effects.<name>`` must reach the effect) and its ``requires`` names of
+    registered effects.
     """
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise TypeError(f"register: expected a subclass of neck_sim.effects.Effect, got {cls!r}")
@@ -67,15 +71,13 @@ def register(cls: type[Effect]) -> type[Effect]:
                          f"'unexplained' and 'insufficient_excitation', got {name!r}")
     if name in _REGISTRY and _REGISTRY[name] is not cls:
         raise ValueError(f"register: an effect called {name!r} exists ({_REGISTRY[name].__name__})")
+    if name in dir(Effects):
+        raise ValueError(f"register: {cls.__name__}.name {name!r} is an attribute of Effects; choose another name")
+    if not all(isinstance(r, str) for r in cls.requires):
+        raise TypeError(f"register: {name}.requires must hold effect names (str), got {cls.requires!r}")
     missing = [r for r in cls.requires if r not in _REGISTRY]
     if missing:
         raise ValueError(f"register: {name} requires unregistered {missing}")
-    for col in cls.columns:
-        if not isinstance(col, Column):
-            raise TypeError(f"register: {name}.columns must hold Column objects, got {col!r}")
-    for sh in cls.shapes:
-        if not isinstance(sh, Shape):
-            raise TypeError(f"register: {name}.shapes must hold Shape objects, got {sh!r}")
     _REGISTRY[name] = cls
     return cls
 
@@ -108,19 +110,6 @@ def get(name: str) -> type[Effect]:
 def paper_model() -> tuple[str, ...]:
     """The paper's model: arctan friction + variable-stiffness cables (the baseline effects)."""
     return tuple(c.name for c in _REGISTRY.values() if c.baseline)
-
-
-for _cls in (DryFriction, ViscousFriction, StribeckFriction, PulleyFriction, CableElasticity, TensionStiffening,
-             Payload, SpringError, ActuationDelay, Pretension, JointFriction, CameraDelay, Backlash):
-    register(_cls)
-_BUILTIN = frozenset(_REGISTRY)
-
-VOCABULARY = names() + (INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED)
-"""The built-in names a diagnosis may report (``none``: the model explains the data;
-``unexplained``: structure is left that no effect removes)."""
-
-EFFECT_TYPES = _REGISTRY
-"""Name -> effect class (a live view of the registry)."""
 
 
 def make_effect(name: str, **kwargs) -> Effect:
@@ -251,3 +240,16 @@ class Effects:
     def slots(cls) -> tuple[str, ...]:
         """Every name an Effects can hold (the registry)."""
         return names()
+
+
+for _cls in (DryFriction, ViscousFriction, StribeckFriction, PulleyFriction, CableElasticity, TensionStiffening,
+             Payload, SpringError, ActuationDelay, Pretension, JointFriction, CameraDelay, Backlash):
+    register(_cls)
+_BUILTIN = frozenset(_REGISTRY)
+
+VOCABULARY = names() + (INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED)
+"""The built-in names a diagnosis may report (``none``: the model explains the data;
+``unexplained``: structure is left that no effect removes)."""
+
+EFFECT_TYPES = _REGISTRY
+"""Name -> effect class (a live view of the registry)."""

@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Effect, Hidden, Shape, finite
+from neck_sim.effects.base import Effect
+from neck_sim.validation import finite
 
 __all__ = ["ActuationDelay"]
 
@@ -24,10 +25,6 @@ class ActuationDelay(Effect):
     description: ClassVar[str] = "the commanded force acts late"
     abbreviation: ClassVar[str] = "delay"            # column heads of tables
     kind: ClassVar[str] = "command"
-    shapes: ClassVar[tuple] = (Shape("delay", "s", default=0.005, grid=(0.002, 0.005, 0.010, 0.020, 0.040),
-                                     refine="linear", span=0.005, profile_step=5e-4),)
-    blind_magnitude: ClassVar[float] = 0.010    # s
-    blind_unit: ClassVar[str] = "s"
     delay: float = 0.006
 
     def __post_init__(self):
@@ -43,15 +40,3 @@ class ActuationDelay(Effect):
         k = np.searchsorted(np.asarray(command_times), np.asarray(t, dtype=float) - self.delay + 1e-12,
                             side="right") - 1
         return np.maximum(k, 0)
-
-    @classmethod
-    def fit_delay(cls, shape):
-        return float(shape["delay"])
-
-    @classmethod
-    def to_plant(cls, params, values, shape):
-        return params, cls(delay=max(cls.fit_delay(shape), 0.0))
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        return Hidden(params, (cls(delay=magnitude),), (), (), f"actuation delay {1e3 * magnitude:.1f} ms", cls.name)

@@ -8,8 +8,9 @@ from typing import ClassVar
 import numpy as np
 
 from neck_sim.analytic.dynamics import arctan_friction
-from neck_sim.effects.base import Column, Hidden, MotorEffect, Shape, finite, indices, per_item
+from neck_sim.effects.base import MotorEffect
 from neck_sim.params import NeckParams
+from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["DryFriction"]
 
@@ -28,11 +29,6 @@ class DryFriction(MotorEffect):
     abbreviation: ClassVar[str] = "dry"            # column heads of tables
     baseline: ClassVar[bool] = True
     magnitude_field: ClassVar[str] = "f_s"
-    columns: ClassVar[tuple] = (Column("f_s", "N"),)
-    shapes: ClassVar[tuple] = (Shape("c_s", "s/rad", default=0.5, grid=(0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
-                                     refine="log", span=2.0),)
-    blind_magnitude: ClassVar[float] = 12.0     # N, f_s on one cable (baseline without friction)
-    blind_unit: ClassVar[str] = "N"
     f_s: tuple | float | None = None
     c_s: float | None = None
     cables: tuple | None = None
@@ -73,33 +69,3 @@ class DryFriction(MotorEffect):
         return arctan_friction(np.asarray(theta_dot, dtype=float), cs, 1.0)
 
     # the plant applies eq (37) from params.friction (apply); no extra native force
-    @classmethod
-    def to_plant(cls, params, values, shape):
-        return cls(f_s=tuple(np.clip(values["f_s"], 0.0, None)), c_s=shape["c_s"]).apply(params), None
-
-    @classmethod
-    def when_absent(cls, params, elastic):
-        return params.replace(**{"friction.f_s": (0.0,) * params.n_cables})
-
-    @classmethod
-    def blind_forms(cls):
-        return {cls.name: (cls.blind_magnitude, cls.hide), cls.name + ":tanh": (cls.blind_magnitude, cls.hide_tanh)}
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        """A sharper sign than eq (37)'s c_s = 0.5, on one cable only, against a friction-free model."""
-        cs = float(rng.uniform(2.0, 6.0))
-        plant = cls.when_absent(params, True)
-        desc = f"dry friction {magnitude:.2f} N, c_s = {cs:.2f} s/rad, on cable {cable + 1} only"
-        return Hidden(plant, (cls(f_s=magnitude, c_s=cs, cables=(cable,)),), (cable,), (), desc, cls.name)
-
-    @classmethod
-    def hide_tanh(cls, params, rng, magnitude, cable, joint):
-        """A tanh-smoothed sign (the plant's Stribeck term with an infinite Stribeck speed), one cable."""
-        from neck_sim.effects.stribeck_friction import StribeckFriction
-
-        smooth = float(rng.uniform(0.2, 1.0))
-        plant = cls.when_absent(params, True)
-        eff = StribeckFriction(df=magnitude, speed=1e6, smoothing=smooth, cables=(cable,))
-        desc = f"dry friction {magnitude:.2f} N with a tanh sign (smoothing {smooth:.2f} rad/s) on cable {cable + 1} only"
-        return Hidden(plant, (eff,), (cable,), (), desc, cls.name)

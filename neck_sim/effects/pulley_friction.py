@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Column, Hidden, MotorEffect, Shape, finite, indices, per_item
+from neck_sim.effects.base import MotorEffect
+from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["PulleyFriction"]
 
@@ -26,11 +27,6 @@ class PulleyFriction(MotorEffect):
     abbreviation: ClassVar[str] = "pulley"            # column heads of tables
     magnitude_field: ClassVar[str] = "mu"
     acts_on_cable_law: ClassVar[bool] = True
-    uses_tension: ClassVar[bool] = True
-    columns: ClassVar[tuple] = (Column("mu", "-"),)
-    shapes: ClassVar[tuple] = (Shape("c", "s/rad", default=0.5, grid=(0.5, 2.0, 8.0), refine="log", span=2.0),)
-    blind_magnitude: ClassVar[float] = 0.15     # fraction of the tension
-    blind_unit: ClassVar[str] = ""
     mu: tuple | float = 0.1
     c: float = 0.5
     cables: tuple | None = None
@@ -46,9 +42,3 @@ class PulleyFriction(MotorEffect):
 
     def native_fields(self, n_cables):
         return {"pf_mu": self.per_cable(n_cables), "pf_c": np.full(n_cables, self.c)}
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        c = float(rng.uniform(1.0, 3.0))
-        desc = f"pulley friction mu = {magnitude:.3f}, c = {c:.2f} s/rad, cable {cable + 1}"
-        return Hidden(params, (cls(mu=magnitude, c=c, cables=(cable,)),), (cable,), (), desc, cls.name)

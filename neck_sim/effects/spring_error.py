@@ -7,27 +7,14 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.analytic import side_lengths
-from neck_sim.effects.base import Column, Design, Effect, Hidden, finite, indices
+from neck_sim.effects.base import Effect
 from neck_sim.params import NeckParams
+from neck_sim.validation import finite, indices
 
-__all__ = ["SpringError", "spring_torque", "SIDES"]
+__all__ = ["SpringError", "SIDES"]
 
 SIDES = ("left", "right")
 """Order of the two side springs of a joint in per-spring arrays (index 2 (j - 1) + side)."""
-
-
-def spring_torque(alpha, params: NeckParams) -> np.ndarray:
-    """Joint torque (S, N, 2) N m per N/m more stiffness of each side spring (left: A_i C_i, right:
-    B_i D_i, eqs 1-2) at the poses alpha (S, N): -d/dalpha of (1/2)(l - l0)^2, sign as g (eq 30).
-
-    A rest-length change dl0 of one spring gives k dl0 dl/dalpha: over the workspace (springs
-    stretched by l(0) - l0 = 41 mm at rest, |l - l(0)| < 15 mm) nearly proportional to this column,
-    so the fit reads it as the stiffness change dk = -k dl0 / (l(0) - l0) (the report says so).
-    """
-    sd = side_lengths(alpha, params)
-    l0 = params.springs.rest_length
-    return np.stack([(sd.l_l - l0) * sd.dl_l, (sd.l_r - l0) * sd.dl_r], axis=-1)
 
 
 def _per_spring(name: str, v, n_springs: int | None = None) -> tuple[float, ...] | None:
@@ -54,9 +41,6 @@ class SpringError(Effect):
     description: ClassVar[str] = "a side spring stiffer, softer or longer than nominal (each spring on its own)"
     abbreviation: ClassVar[str] = "spring"            # column heads of tables
     kind: ClassVar[str] = "params"
-    columns: ClassVar[tuple] = (Column("dk", "N/m", per="spring", signed=False),)
-    blind_magnitude: ClassVar[float] = 0.5      # relative stiffness error of one spring
-    blind_unit: ClassVar[str] = "relative"
     stiffness_scale: float = 1.0
     rest_length_offset: float = 0.0
     joints: tuple | None = None
@@ -93,28 +77,3 @@ class SpringError(Effect):
             raise ValueError(f"spring_error.dk: a spring stiffness would be negative ({k.round(1).tolist()} N/m)")
         model.tendon_stiffness[ids] = k
         model.tendon_lengthspring[ids] = (index.spring_length.reshape(-1) + dl0)[:, None]
-
-    @classmethod
-    def design(cls, data, shape, context):
-        """Torque block: per spring, the torque of 1 N/m more stiffness."""
-        torque = data.cached(cls.name, lambda: spring_torque(data.alpha, data.params))       # (S, N, 2)
-        S, n = data.S, data.n
-        cols = np.zeros((S, n, 2 * n))
-        for j in range(n):
-            cols[:, j, 2 * j:2 * j + 2] = torque[:, j, :]
-        return Design(cols, np.zeros((S, data.C, 2 * n)))
-
-    @classmethod
-    def to_plant(cls, params, values, shape):
-        k = np.repeat(np.asarray(params.springs.stiffness, dtype=float), 2)
-        dk = np.maximum(np.asarray(values["dk"], dtype=float), -k)
-        return params, cls(dk=tuple(dk))
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        side = int(rng.integers(2))
-        k = params.springs.stiffness[joint] * magnitude * (1 if rng.random() < 0.5 else -1)
-        dk = np.zeros(2 * params.n_joints)
-        dk[2 * joint + side] = k
-        desc = f"{SIDES[side]} side spring of joint {joint + 1} {k:+.0f} N/m"
-        return Hidden(params, (cls(dk=tuple(dk)),), (), (joint,), desc, cls.name)

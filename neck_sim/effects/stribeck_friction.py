@@ -7,8 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Column, Hidden, MotorEffect, Shape, finite, indices, per_item
-from neck_sim.effects.dry_friction import DryFriction
+from neck_sim.effects.base import MotorEffect
+from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["StribeckFriction"]
 
@@ -27,12 +27,7 @@ class StribeckFriction(MotorEffect):
     description: ClassVar[str] = "breakaway friction above the dry friction at low speed"
     abbreviation: ClassVar[str] = "strib"            # column heads of tables
     magnitude_field: ClassVar[str] = "df"
-    columns: ClassVar[tuple] = (Column("df", "N"),)
-    shapes: ClassVar[tuple] = (Shape("smoothing", "rad/s", default=0.5, grid=(0.15, 0.5, 1.5)),
-                               Shape("speed", "rad/s", default=5.0, grid=(1.5, 3.0, 6.0, 12.0)))
-    requires: ClassVar[tuple] = (DryFriction.name,)      # a breakaway bump on top of dry friction
-    blind_magnitude: ClassVar[float] = 8.0              # N of extra breakaway friction
-    blind_unit: ClassVar[str] = "N"
+    requires: ClassVar[tuple] = ("dry_friction",)      # a breakaway bump on top of dry friction
     df: tuple | float = 5.0
     speed: float = 5.0
     smoothing: float = 0.5
@@ -51,12 +46,3 @@ class StribeckFriction(MotorEffect):
     def native_fields(self, n_cables):
         return {"st_df": self.per_cable(n_cables), "st_speed": np.full(n_cables, self.speed),
                 "st_smooth": np.full(n_cables, self.smoothing)}
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        speed = float(rng.uniform(2.5, 7.0))
-        smooth = float(rng.uniform(0.2, 0.8))
-        desc = (f"Stribeck friction +{magnitude:.2f} N, speed {speed:.2f} rad/s, smoothing {smooth:.2f} rad/s, "
-                f"cable {cable + 1}")
-        return Hidden(params, (cls(df=magnitude, speed=speed, smoothing=smooth, cables=(cable,)),), (cable,), (),
-                      desc, cls.name)

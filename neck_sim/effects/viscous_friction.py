@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.effects.base import Column, Hidden, MotorEffect, indices, per_item
+from neck_sim.effects.base import MotorEffect
+from neck_sim.validation import indices, per_item
 
 __all__ = ["ViscousFriction"]
 
@@ -24,9 +25,6 @@ class ViscousFriction(MotorEffect):
     description: ClassVar[str] = "friction proportional to the motor speed"
     abbreviation: ClassVar[str] = "visc"            # column heads of tables
     magnitude_field: ClassVar[str] = "c_v"
-    columns: ClassVar[tuple] = (Column("c_v", "N s/rad"),)
-    blind_magnitude: ClassVar[float] = 0.15     # N s/rad at the motor shaft
-    blind_unit: ClassVar[str] = "N s/rad"
     c_v: tuple | float = 0.2
     cables: tuple | None = None
 
@@ -39,8 +37,3 @@ class ViscousFriction(MotorEffect):
 
     def native_fields(self, n_cables):
         return {"c_v": self.per_cable(n_cables)}
-
-    @classmethod
-    def hide(cls, params, rng, magnitude, cable, joint):
-        desc = f"viscous friction {magnitude:.3f} N s/rad on cable {cable + 1}"
-        return Hidden(params, (cls(c_v=magnitude, cables=(cable,)),), (cable,), (), desc, cls.name)

@@ -183,7 +183,7 @@ def _reproduce(settings: ReproduceSettings, pool) -> Reproduction:
     from identification.diagnosis import diagnose_log
     from identification.paper import format_tables, identify_log
     from identification.plots import save_identification_figures
-    from identification.report import write_report
+    from identification.diagnosis.report import write_report
     from neck_sim import mjcf
     from neck_sim.crossval import crossval, format_table
     from neck_sim.logs import read_log

@@ -1,6 +1,6 @@
 """Blind measured-data logs whose hidden effects share no code with the diagnosis' candidates.
 
-The generator never imports :mod:`neck_sim.effects`, :mod:`identification.candidates` or
+The generator never imports :mod:`neck_sim.effects`, :mod:`identification.diagnosis.candidates` or
 :mod:`identification.diagnosis`: it builds a *nominal* :class:`neck_sim.plant.Plant` (no effects)
 and hides each effect by another mechanism than the candidate's:
 

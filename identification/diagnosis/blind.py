@@ -39,6 +39,8 @@ from neck_sim import effects as effect_registry
 from neck_sim.effects import NONE, Effects
 from neck_sim.params import NeckParams, default_params
 
+from identification.diagnosis import blind_forms as forms_registry
+
 __all__ = ["excitation_trajectory", "ServoGains", "run_log", "BlindCase", "hidden_effect", "blind_forms", "CASES",
            "MAGNITUDES", "make_case", "make_cases"]
 
@@ -126,14 +128,14 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
 # ------------------------------------------------------------------------------------- hidden effects
 
 def blind_forms() -> dict:
-    """Blind case name -> (effect class, test magnitude, hide function) over the registry, in
-    report order (an effect may have several forms, e.g. ``dry_friction:tanh``)."""
-    return {case: (cls, mag, hide) for cls in effect_registry.registered()
-            for case, (mag, hide) in cls.blind_forms().items()}
+    """Blind case name -> (effect class, test magnitude, hide function) over the generator's
+    registry (:mod:`identification.diagnosis.blind_forms`), in report order (an effect may have
+    several forms, e.g. ``dry_friction:tanh``)."""
+    return {case: (effect_registry.get(f.effect), f.magnitude, f.hide) for case, f in forms_registry.forms().items()}
 
 
 #: Test magnitudes per blind case (the "medium" level) of the built-in vocabulary; the detection
-#: benchmark scales them.  Defined by each effect's module (``blind_magnitude``).
+#: benchmark scales them.  Defined with each form (:mod:`identification.diagnosis.blind_forms`).
 MAGNITUDES = {case: mag for case, (_, mag, _) in blind_forms().items()}
 
 
@@ -170,8 +172,8 @@ def baseline_without(name: str) -> tuple[str, ...]:
 
 def hidden_effect(name: str, seed: int, level: float = 1.0, params: NeckParams | None = None) -> BlindCase:
     """The blind case ``name``: magnitude ``level`` x the effect's test magnitude times a factor
-    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``; the effect's own module
-    says how to hide it (:meth:`neck_sim.effects.Effect.hide`).
+    in [0.8, 1.25] and the affected cable/joint, both drawn from ``seed``; the generator's form
+    for the case says how to hide it (:mod:`identification.diagnosis.blind_forms`).
 
     The hidden forms differ from the candidates' on purpose (see the module docstring).
     """

@@ -31,7 +31,7 @@ stiffness, so it minimises elongation errors.  A rigid model says x_c = 0: its c
 x_c itself (m) and it has no cable-block parameters.  The elongation form makes rigid and elastic
 models comparable.
 
-**Parallel filtering** (:mod:`identification.measured`): motor-side regressors pass through the
+**Parallel filtering** (:mod:`identification.diagnosis.measured`): motor-side regressors pass through the
 observations' filter chain.  Regressors that need the tension (pulley friction, lambda, pretension) use the previous fit's
 tension estimate, iterated to convergence (three passes).
 
@@ -40,10 +40,11 @@ control periods), d found by a 1-D search.  **Pretension** shifts the elongation
 its rest elongation x_0 (eq 54 with x_c + x_0): with k, lambda free the offset is nearly
 collinear with them (a linear offset column lets the fit run to negative stiffness), so x_0 is a
 bounded shape parameter per cable, searched on
-:data:`neck_sim.effects.PRETENSION_RANGE` ([-1, 5] mm).
+:data:`identification.diagnosis.columns.PRETENSION_RANGE` ([-1, 5] mm).
 
-Every effect-specific piece (columns, shapes, prerequisites, the map back to the plant) lives in
-the effect's own module of :mod:`neck_sim.effects`; this module only loops over a model's terms.
+Every effect-specific piece lives in the effect's own modules: its physics (parameters, force
+law, prerequisites) in :mod:`neck_sim.effects`, its columns, shapes and the map back to the plant
+in :mod:`identification.diagnosis.columns`; this module only loops over a model's terms.
 
 Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad, ``df(i)`` N,
 ``mu(i)``, ``k(i)`` N/m, ``c_a(i)`` N s/m, ``lambda(i)`` 1/m, ``payload`` kg,
@@ -53,16 +54,16 @@ Parameter vector layout (names as in reports): ``f_s(i)`` N, ``c_v(i)`` N s/rad,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
-
 import numpy as np
 
 from neck_sim import effects as effect_registry
 from neck_sim.effects import Effect, Effects
 from neck_sim.params import NeckParams
 
+from identification.diagnosis import columns as effect_columns
+from identification.diagnosis.columns import Design, EffectColumns, FitContext
+from identification.diagnosis.measured import MeasuredData
 from identification.least_squares import solve_weighted
-from identification.measured import MeasuredData
 
 __all__ = ["effect_names", "grid_of", "paper_model", "Term", "ModelSpec", "MeasuredData", "FitState", "FitContext",
            "Fit", "fit_model", "initial_state", "plant_model", "pretension_offsets", "elongation_offsets", "EFFECTS", "REQUIRES",
@@ -70,8 +71,9 @@ __all__ = ["effect_names", "grid_of", "paper_model", "Term", "ModelSpec", "Measu
 
 
 def effect_names() -> tuple[str, ...]:
-    """Candidate effects in report order: every registered effect (the vocabulary without ``none``)."""
-    return effect_registry.names()
+    """Candidate effects in report order: every registered effect with columns (the vocabulary
+    without ``none``)."""
+    return effect_columns.names()
 
 
 def paper_model() -> tuple[str, ...]:
@@ -81,7 +83,7 @@ def paper_model() -> tuple[str, ...]:
 
 def grid_of(name: str) -> dict[str, tuple]:
     """Shape parameter -> the grid a candidate ``name`` is tried at (searched shapes only)."""
-    return {sh.name: tuple(sh.grid) for sh in effect_registry.get(name).shapes if sh.grid}
+    return {sh.name: tuple(sh.grid) for sh in effect_columns.get(name).shapes if sh.grid}
 
 
 def __getattr__(name: str):
@@ -94,7 +96,7 @@ def __getattr__(name: str):
     if name == "REQUIRES":
         return {c.name: c.requires[0] for c in effect_registry.registered() if c.requires}
     if name == "SHAPE_GRIDS":
-        return {c.name: grid_of(c.name) for c in effect_registry.registered() if grid_of(c.name)}
+        return {n: grid_of(n) for n in effect_names() if grid_of(n)}
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -108,12 +110,18 @@ class Term:
 
     def __post_init__(self):
         effect_registry.get(self.name)
+        effect_columns.get(self.name)
         object.__setattr__(self, "shape", tuple(sorted((str(k), float(v)) for k, v in dict(self.shape).items())))
 
     @property
     def effect(self) -> type[Effect]:
-        """The effect class of :mod:`neck_sim.effects`."""
+        """The effect's physics (:mod:`neck_sim.effects`)."""
         return effect_registry.get(self.name)
+
+    @property
+    def identification(self) -> type[EffectColumns]:
+        """The effect's columns, shapes and map back to the plant (:mod:`identification.diagnosis.columns`)."""
+        return effect_columns.get(self.name)
 
     def get(self, key: str, default: float | None = None) -> float | None:
         return dict(self.shape).get(key, default)
@@ -143,7 +151,7 @@ class ModelSpec:
     def of(cls, *names_or_terms) -> "ModelSpec":
         terms = []
         for x in names_or_terms:
-            terms.append(x if isinstance(x, Term) else Term(x, effect_registry.get(x).default_shape()))
+            terms.append(x if isinstance(x, Term) else Term(x, effect_columns.get(x).default_shape()))
         return cls(tuple(terms))
 
     @property
@@ -159,7 +167,7 @@ class ModelSpec:
     @property
     def elastic(self) -> bool:
         """Elastic cables (eq 54) when a term makes them so; else rigid (eq 25)."""
-        return any(t.effect.elastic_cables for t in self.terms)
+        return any(t.identification.elastic_cables for t in self.terms)
 
     def plus(self, term: Term) -> "ModelSpec":
         return ModelSpec(self.terms + (term,))
@@ -180,7 +188,7 @@ class ModelSpec:
         terms = []
         for it in items:
             if isinstance(it, str):
-                terms.append(Term(it, effect_registry.get(it).default_shape()))
+                terms.append(Term(it, effect_columns.get(it).default_shape()))
                 continue
             d = dict(it)
             name = d.pop("effect", None)
@@ -245,23 +253,13 @@ class Fit:
         return np.concatenate([self.torque, self.cable], axis=1)
 
 
-class FitContext(NamedTuple):
-    """What an effect's ``design`` may use besides the data, for one pass of a fit: elongations
-    ``x`` (S, C) m with the model's rest elongations, tension estimates ``tension_fast`` (T, C) and
-    ``tension`` (S, C) N from the previous pass."""
-
-    x: np.ndarray
-    tension_fast: np.ndarray
-    tension: np.ndarray
-
-
 def pretension_offsets(model: "ModelSpec", n_cables: int) -> np.ndarray:
     """(C,) m: the elongation at rest x_0 of each cable the model's terms impose (pretension),
     zeros without such a term.  The cable law then uses x_c + x_0 (the encoders were zeroed with
     the cables already stretched)."""
     out = np.zeros(n_cables)
     for t in model.terms:
-        out = out + t.effect.fit_elongation_offset(dict(t.shape), n_cables)
+        out = out + t.identification.fit_elongation_offset(dict(t.shape), n_cables)
     return out
 
 
@@ -270,7 +268,7 @@ def elongation_offsets(model: "ModelSpec", data: MeasuredData) -> np.ndarray:
     (:func:`pretension_offsets`) and the offsets that follow the motion (a dead band)."""
     out = pretension_offsets(model, data.C)
     for t in model.terms:
-        series = t.effect.fit_elongation_series(data, dict(t.shape))
+        series = t.identification.fit_elongation_series(data, dict(t.shape))
         if series is not None:
             out = out + series
     return out
@@ -300,18 +298,18 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         raise ValueError(f"scales: expected {n + C} positive values, got {scales!r}")
     train = np.asarray(train, bool)
     state = state or initial_state(data)
-    delay = float(sum(t.effect.fit_delay(dict(t.shape)) for t in model.terms))
-    data = data.camera_shifted(sum(t.effect.fit_camera_shift(dict(t.shape)) for t in model.terms))
+    delay = float(sum(t.identification.fit_delay(dict(t.shape)) for t in model.terms))
+    data = data.camera_shifted(sum(t.identification.fit_camera_shift(dict(t.shape)) for t in model.terms))
     y_fast, y_slow = data.observations(delay)
     for term in model.terms:
-        offset = term.effect.fit_force_offset(data, dict(term.shape))
+        offset = term.identification.fit_force_offset(data, dict(term.shape))
         if offset is not None:
             y_fast, y_slow = y_fast + offset[0], y_slow + offset[1]
     yT = data.torque_observation(y_slow)
     elastic = model.elastic
     taut = data.taut
     x = data.x + elongation_offsets(model, data)
-    iters = iterations if (elastic or any(t.effect.uses_tension for t in model.terms)) else 1
+    iters = iterations if (elastic or any(t.identification.uses_tension for t in model.terms)) else 1
     t_fast, t_slow = state.tension_fast, state.tension
     k_hat = np.maximum(np.asarray(state.k, dtype=float), 1.0)
     lam_hat = np.maximum(np.asarray(state.lam, dtype=float), 0.0)
@@ -323,10 +321,10 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     fit = None
     notes = []
     for _ in range(iters):
-        colsT, colsC, names, units, motor_fast = [], [], [], [], []
+        designs, names, units, motor_fast = [], [], [], []
         ctx = FitContext(x, t_fast, t_slow)
         for term in model.terms:
-            eff = term.effect
+            eff = term.identification
             design = eff.design(data, dict(term.shape), ctx)
             cols = [nm for col in eff.columns for nm in col.names(n, C)]
             if design.torque.shape[2] != len(cols) or design.cable.shape[2] != len(cols):
@@ -336,18 +334,12 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
                 continue                                                        # acts on the observations
             if design.motor is not None:
                 motor_fast.append((len(names), *design.motor))
-            colsT.append(design.torque)
-            colsC.append(design.cable)
+            designs.append(design)
             names += cols
             units += [col.unit for col in eff.columns for _ in col.names(n, C)]
         p = len(names)
         stiff = k_hat + lam_hat * np.maximum(t_slow, 0.0)                       # (S, C) N/m
-        if p:
-            AT = np.concatenate(colsT, axis=2)                                  # (S, N, p)
-            AC = np.concatenate(colsC, axis=2)                                  # (S, C, p)
-        else:
-            AT = np.zeros((S, n, 0))
-            AC = np.zeros((S, C, 0))
+        AT, AC = Design.concat(designs, n, C, S)                                 # (S, N, p), (S, C, p)
         if p:
             rowsT = (AT[train] * wT[None, :, None]).reshape(-1, p)
             YT = (yT[train] * wT).reshape(-1)
@@ -402,15 +394,15 @@ def _pick(names, value, symbol, C, default=None):
 def plant_model(fit: Fit, nominal: NeckParams) -> tuple[NeckParams, Effects, bool]:
     """The fitted model as plant data: (parameters, effects, rigid cables).
 
-    Each registered effect maps its fitted values back (``to_plant``: constants it owns replaced,
+    Each effect with columns maps its fitted values back (``to_plant``: constants it owns replaced,
     non-negative friction, stiffness and damping clipped at 0, stiffness at 1 N/m, or an extra
     effect) or says what the plant has without it (``when_absent``: zero friction when the model
     has none); rigid cables when no term makes them elastic.
     """
     m = fit.model
     params, extra = nominal, []
-    for cls in effect_registry.registered():
-        term = m.term(cls.name)
+    for cls in effect_columns.registered():
+        term = m.term(cls.effect)
         if term is None:
             params = cls.when_absent(params, m.elastic)
             continue

@@ -1,7 +1,7 @@
 """The measured signals of one log, prepared once for every model fit of the diagnosis.
 
 Observations and regressors on the slow grid of :func:`identification.preprocessing.prepare`
-(the two blocks of equations are described in :mod:`identification.candidates`).
+(the two blocks of equations are described in :mod:`identification.diagnosis.candidates`).
 
 **Parallel filtering.** Motor-side regressors are nonlinear in the motor speed (a sign-like
 friction), so they are computed at the control rate from the encoders' speed (filtered at the motor
@@ -32,6 +32,7 @@ class MeasuredData:
     Built from measured topics only (:class:`~identification.preprocessing.Measurements`) and the
     nominal constants ``params`` (geometry, drive, springs, masses; never friction or cables).
     Shapes: T control-rate samples, S slow-grid samples, N joints, C = m cables (the routing's).
+    The effects' columns read it through :class:`identification.diagnosis.columns.ColumnData`.
     """
 
     def __init__(self, meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
@@ -183,29 +184,27 @@ class MeasuredData:
         out._col_cache, out._shifted, out.camera_shift = {}, {}, shift
         return out
 
+    # what the effects' columns read (:class:`identification.diagnosis.columns.ColumnData`)
+    @property
+    def alpha_dot(self) -> np.ndarray:
+        """(S, N) rad/s, the camera's joint speeds on the slow grid (shifted with the camera)."""
+        return self.prep.alpha_dot
+
+    @property
+    def alpha_ddot(self) -> np.ndarray:
+        """(S, N) rad/s^2, the camera's joint accelerations on the slow grid (shifted with the camera)."""
+        return self.prep.alpha_ddot
+
+    @property
+    def theta_fast(self) -> np.ndarray:
+        """(T, C) rad, the encoders at the control rate."""
+        return self.prep.fast.theta
+
     def cached(self, key, compute):
         """``compute()`` once per ``key`` for this log (regressor columns that do not depend on the fit)."""
         if key not in self._col_cache:
             self._col_cache[key] = compute()
         return self._col_cache[key]
-
-    def motor_basis(self, effect: type, shape: dict, tension_fast: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
-        """(fast (T, C), slow (S, C)) force per unit magnitude of the motor-side ``effect`` class
-        with ``shape``: its regressor on the encoders' speed (and the tension estimate, clipped at
-        0, when it needs one), through the observations' filter chain."""
-        def compute():
-            t = None
-            if effect.uses_tension:
-                if tension_fast is None:
-                    raise ValueError(f"{effect.name}: needs a tension estimate")
-                t = np.maximum(tension_fast, 0.0)
-            fast = effect.unit(shape).regressor(self.theta_dot_fast, t)
-            return fast, self.to_slow(fast)
-
-        if effect.uses_tension:             # changes with every pass of the fit
-            return compute()
-        return self.cached((effect.name, tuple(sorted(shape.items()))), compute)
 
     @classmethod
     def from_log(cls, log, params: NeckParams | None = None, settings: PreprocessSettings | None = None,

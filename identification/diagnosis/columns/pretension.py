@@ -1,0 +1,39 @@
+"""Columns of ``pretension``: none; the rest elongation of each cable is a bounded shape."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from neck_sim.effects import Pretension
+
+from identification.diagnosis.columns.base import EffectColumns, Shape
+
+__all__ = ["PretensionColumns", "PRETENSION_RANGE"]
+
+#: Search range of the rest elongation of each cable (m): 1.5 mm (the blind magnitude) x 1.25 plus
+#: margin above, and a slack cable (negative offset) below.
+PRETENSION_RANGE = (-1e-3, 5e-3)
+
+
+class PretensionColumns(EffectColumns):
+    """The rest elongation x_0 (m) per cable, added to the measured elongation of eq (27): nearly
+    collinear with k and lambda as a linear column (a linear offset lets the fit run to negative
+    stiffness), so a shape searched on :data:`PRETENSION_RANGE` cable by cable."""
+
+    effect: ClassVar[str] = Pretension.name
+    shapes: ClassVar[tuple] = (Shape("x0", "m", per_cable=True, bounds=PRETENSION_RANGE, profile_step=1e-4),)
+
+    @classmethod
+    def fit_elongation_offset(cls, shape: dict, n_cables: int) -> np.ndarray:
+        """x_0 (n_cables,) m from the shape keys ``x0_<i>`` (1-based)."""
+        out = np.zeros(n_cables)
+        for key, v in shape.items():
+            if key.startswith("x0_"):
+                out[int(key[3:]) - 1] = v
+        return out
+
+    @classmethod
+    def to_plant(cls, params, values, shape):
+        return params, Pretension(elongation=tuple(cls.fit_elongation_offset(shape, params.n_cables)))

@@ -1,0 +1,52 @@
+"""Columns of ``spring_error``: a stiffness change per side spring (2N columns)."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from neck_sim.analytic import side_lengths
+from neck_sim.effects import SpringError
+from neck_sim.params import NeckParams
+
+from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext
+
+__all__ = ["SpringErrorColumns", "spring_torque"]
+
+
+def spring_torque(alpha, params: NeckParams) -> np.ndarray:
+    """Joint torque (S, N, 2) N m per N/m more stiffness of each side spring (left: A_i C_i, right:
+    B_i D_i, eqs 1-2) at the poses alpha (S, N): -d/dalpha of (1/2)(l - l0)^2, sign as g (eq 30).
+
+    A rest-length change dl0 of one spring gives k dl0 dl/dalpha: over the workspace (springs
+    stretched by l(0) - l0 = 41 mm at rest, |l - l(0)| < 15 mm) nearly proportional to this column,
+    so the fit reads it as the stiffness change dk = -k dl0 / (l(0) - l0) (the report says so).
+    """
+    sd = side_lengths(alpha, params)
+    l0 = params.springs.rest_length
+    return np.stack([(sd.l_l - l0) * sd.dl_l, (sd.l_r - l0) * sd.dl_r], axis=-1)
+
+
+class SpringErrorColumns(EffectColumns):
+    """dk (N/m) per side spring (joint 1 left, joint 1 right, ...), torque block only; mapped to
+    the plant as ``SpringError(dk=...)`` (MuJoCo's tendon stiffness)."""
+
+    effect: ClassVar[str] = SpringError.name
+    columns: ClassVar[tuple] = (Column("dk", "N/m", per="spring", signed=False),)
+
+    @classmethod
+    def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
+        """Torque block: per spring, the torque of 1 N/m more stiffness."""
+        torque = data.cached(cls.effect, lambda: spring_torque(data.alpha, data.params))       # (S, N, 2)
+        S, n = data.S, data.n
+        cols = np.zeros((S, n, 2 * n))
+        for j in range(n):
+            cols[:, j, 2 * j:2 * j + 2] = torque[:, j, :]
+        return Design(cols, np.zeros((S, data.C, 2 * n)))
+
+    @classmethod
+    def to_plant(cls, params, values, shape):
+        k = np.repeat(np.asarray(params.springs.stiffness, dtype=float), 2)
+        dk = np.maximum(np.asarray(values["dk"], dtype=float), -k)
+        return params, SpringError(dk=tuple(dk))
