@@ -11,7 +11,7 @@ import pytest
 from mcap.reader import make_reader
 
 from controllers.parallel import RunSpec, run_one
-from identification.blind import excitation_trajectory, run_log
+from identification.diagnosis.blind import excitation_trajectory, run_log
 from neck_sim import env as neck_env
 from neck_sim.effects import Effects, Payload
 from neck_sim.logs import read_log
