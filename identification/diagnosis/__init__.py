@@ -60,7 +60,13 @@ The stages, one module each: :mod:`~identification.diagnosis.settings`,
 :mod:`~identification.diagnosis.candidate`, :mod:`~identification.diagnosis.selection`,
 :mod:`~identification.diagnosis.gains`, :mod:`~identification.diagnosis.resimulation`,
 :mod:`~identification.diagnosis.parameters`, :mod:`~identification.diagnosis.result`,
-:mod:`~identification.diagnosis.pipeline`.
+:mod:`~identification.diagnosis.pipeline`.  What they work on: the log's data
+(:mod:`~identification.diagnosis.measured`), the model and its fit
+(:mod:`~identification.diagnosis.candidates`), each effect's columns over the typed data
+protocol (:mod:`~identification.diagnosis.columns`, one module per effect), the report
+(:mod:`~identification.diagnosis.report`); the blind-test generator
+(:mod:`~identification.diagnosis.blind`) with its hiding forms
+(:mod:`~identification.diagnosis.blind_forms`, one per effect).
 """
 
 from identification.diagnosis.candidate import CandidateScore
