@@ -106,7 +106,7 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
     act = plant_params.actuation
     f_lo, f_hi = act.f_min, act.f_max
     a = dt / (gains.tau + dt)
-    info = {"generator": "identification.blind.run_log", "trajectory": traj.name,
+    info = {"generator": "identification.diagnosis.blind.run_log", "trajectory": traj.name,
             **PlantSpec.of(plant).to_record(), **(run_info or {})}
     theta_prev = plant.encoders()
     speed = np.zeros(n + 1)
