@@ -111,6 +111,8 @@ class NeckPhysics(dm_mujoco.Physics):
         if nstep < n or nstep % n:
             raise ValueError(f"nstep: the plant steps whole control periods of {n} physics steps, got {nstep}")
         frame = None
+        # records nothing itself: the task records each environment step (one control period,
+        # NeckEnvironment's control_timestep) through its Recorder in before_step/after_step
         with self.check_invalid_state():
             for _ in range(nstep // n):
                 self._plant.step(self._forces)

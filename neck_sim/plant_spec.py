@@ -89,7 +89,8 @@ class PlantSpec:
 
     @classmethod
     def of(cls, plant) -> "PlantSpec":
-        """The spec of a built plant (its timestep resolved, its backend as it runs)."""
+        """The spec of a built plant (its timestep resolved, its backend as it runs, its
+        integrator as it was asked for: None when the plant chose it from c_a)."""
         return cls(plant.params, plant.effects, seed=plant.seed, timestep=plant.timestep,
                    rigid_cables=plant.rigid_cables, backend=getattr(plant, "backend", None),
                    integrator=getattr(plant, "integrator", None))

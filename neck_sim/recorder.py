@@ -10,8 +10,8 @@
 
 A :class:`Recorder` holds the arrays of K runs (``runs``) of T control periods: sample times
 ``t`` (K, T) s, encoders ``theta`` and commanded forces ``force`` (K, T, m), the simulation truth
-``truth`` (K, T, 3m + 2N + 1) in the column layout of :func:`neck_sim.plant.truth_columns` (the
-rows :attr:`neck_sim.plant.PlantBatch.out` holds, so a batch loop copies them whole), and, when
+``truth`` (K, T, 3m + 2N + 1) in the column layout of :func:`neck_sim.batch.truth_columns` (the
+rows :attr:`neck_sim.batch.PlantBatch.out` holds, so a batch loop copies them whole), and, when
 asked for, the reference ``alpha_d`` and the estimate ``alpha_hat`` (K, T, N) rad; camera frames
 (t s, alpha (N,) rad) per run.  Rows not sampled stay NaN.  A loop that does not know its length
 (an environment episode) appends; the arrays then grow (reallocated: hold no views across samples).
@@ -28,7 +28,7 @@ import os
 
 import numpy as np
 
-from neck_sim.plant import truth_columns
+from neck_sim.batch import truth_columns
 
 __all__ = ["Recorder", "TOPIC_ORDER"]
 
@@ -106,7 +106,7 @@ class Recorder:
 
     # -- reading -------------------------------------------------------------------------------
     def truth_column(self, name: str, run: int = 0) -> np.ndarray:
-        """Truth column(s) ``name`` of :func:`neck_sim.plant.truth_columns` over the record's rows:
+        """Truth column(s) ``name`` of :func:`neck_sim.batch.truth_columns` over the record's rows:
         (T, width), or (T,) for ``loop_gap``; a view."""
         if self.truth is None:
             raise ValueError("Recorder: this record has no truth (Recorder(..., truth=False))")

@@ -155,8 +155,9 @@ def test_an_appending_recorder_grows_and_keeps_its_rows():
 
 @pytest.mark.parametrize("spec", [PlantSpec(default_params(3), Effects(payload=Payload(mass=0.04)), seed=7,
                                             timestep=2.5e-4),
-                                  PlantSpec(default_params(3), seed=3, rigid_cables=True)],
-                         ids=["elastic, payload, 0.25 ms", "rigid"])
+                                  PlantSpec(default_params(3), seed=3, rigid_cables=True),
+                                  PlantSpec(default_params(3), seed=2, integrator="discrete")],
+                         ids=["elastic, payload, 0.25 ms", "rigid", "discrete integrator"])
 def test_plant_spec_round_trips_through_a_logs_run_record(tmp_path, spec):
     assert pickle.loads(pickle.dumps(spec)) == spec                 # travels to campaign workers
     rec = Recorder(spec.params.n_joints, spec.params.n_cables, 150)
