@@ -13,14 +13,15 @@ A batch takes plant-like objects: anything with a ``native`` attribute holding a
 
 Usage::
 
+    import numpy as np
     from neck_sim.batch import PlantBatch, truth_columns
     from neck_sim.plant import Plant
 
-    plants = [Plant(seed=s) for s in range(4)]
+    plants = [Plant(seed=s) for s in range(4)]          # N = 3 joints, m = 4 cables
     with PlantBatch(plants) as batch:
         for k in range(500):
-            batch.step(forces)                          # forces (4, m) N
-            alpha = batch.out[:, truth_columns(3, 4)["alpha"]]
+            stopped = batch.step(np.full((4, 4), 20.0))     # (K, m) N; the plants stopped in it
+            alpha = batch.out[:, truth_columns(3, 4)["alpha"]]   # (K, N) rad
 """
 
 from __future__ import annotations
