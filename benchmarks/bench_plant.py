@@ -1,4 +1,4 @@
-"""Plant speed: one control period of the simulated neck against bare ``mj_step`` (issue 3 item 6).
+"""Plant speed: one control period of the simulated neck against bare ``mj_step``.
 
 Measured in the same run, interleaved, best of ``--repeat`` loops of ``--periods`` control
 periods (short loops: the minimum filters out a shared machine's load), with a smooth

@@ -1,4 +1,4 @@
-"""Moving a neck with fewer cables than N + 1 (issue 15, item 5): inverse statics + motor PID.
+"""Moving a neck with fewer cables than N + 1: inverse statics + motor PID.
 
 A neck with m < N + 1 cables holds only an m-dimensional set of poses (the equilibria of
 :mod:`neck_sim.analytic.statics`), so its reference must stay on that set, and its pose follows

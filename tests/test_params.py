@@ -59,7 +59,7 @@ def test_partial_file_takes_defaults_and_unknown_keys_fail(tmp_path):
         P.load(path)
 
 
-# -- issue 14: messages that named the wrong thing or came as raw tracebacks ----------------------
+# -- messages that named the wrong thing or came as raw tracebacks ---------------------------------
 
 @pytest.mark.parametrize("field, value, kind", [
     ("b", '"abc"', "number"), ("b", "true", "number"), ("b", "[0.05]", "number"),

@@ -1,4 +1,4 @@
-"""Statics of an N-X neck driven by any number m of cables (issue 15, item 3).
+"""Statics of an N-X neck driven by any number m of cables.
 
 A neck with fewer cables than N + 1 cannot hold an arbitrary pose: its equilibria form an
 m-dimensional set in alpha-space.  This module finds them and says whether they are stable.

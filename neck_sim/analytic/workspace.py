@@ -1,4 +1,4 @@
-"""Static-feasible workspace of a neck with any cable count (issue 15, item 3).
+"""Static-feasible workspace of a neck with any cable count.
 
 In the sense of CASPR's wrench-feasible workspace: the poses the neck can *hold* with cable
 tensions in [f_min, f_max].  With m < N + 1 cables those poses form an m-dimensional set, so they

@@ -1,4 +1,4 @@
-"""`neck-sim crossval`: the MuJoCo model against the analytic model (issue 3, item 4)."""
+"""`neck-sim crossval`: the MuJoCo model against the analytic model."""
 
 from __future__ import annotations
 

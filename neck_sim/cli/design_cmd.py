@@ -1,4 +1,4 @@
-"""`neck-sim design`: compare cable routings for one neck (issue 15, item 4)."""
+"""`neck-sim design`: compare cable routings for one neck."""
 
 from __future__ import annotations
 
