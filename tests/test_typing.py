@@ -22,6 +22,8 @@ PUBLIC_MODULES = [
     "neck_sim.analytic", "neck_sim.analytic.cables", "neck_sim.analytic.dynamics",
     "neck_sim.analytic.estimation", "neck_sim.analytic.geometry", "neck_sim.analytic.statics",
     "neck_sim.analytic.workspace",
+    "controllers.elastic_lqr", "controllers.estimators", "controllers.plots", "controllers.reachable_paths",
+    "controllers.selection", "controllers.tension", "controllers.underactuated",
 ]
 
 
