@@ -24,6 +24,9 @@ PUBLIC_MODULES = [
     "neck_sim.analytic.workspace",
     "controllers.elastic_lqr", "controllers.estimators", "controllers.plots", "controllers.reachable_paths",
     "controllers.selection", "controllers.tension", "controllers.underactuated",
+    "identification.excitation", "identification.gaps", "identification.least_squares", "identification.plots",
+    "identification.preprocessing", "identification.regressors", "identification.simulator",
+    "identification.uncertainty",
 ]
 
 
