@@ -25,7 +25,7 @@ PUBLIC_MODULES = [
     "controllers.elastic_lqr", "controllers.estimators", "controllers.plots", "controllers.reachable_paths",
     "controllers.selection", "controllers.tension", "controllers.underactuated",
     "identification.excitation", "identification.gaps", "identification.least_squares", "identification.plots",
-    "identification.preprocessing", "identification.regressors", "identification.simulator",
+    "identification.paper", "identification.preprocessing", "identification.regressors", "identification.simulator",
     "identification.uncertainty",
 ]
 
