@@ -18,6 +18,7 @@ from controllers.trajectories import Trajectory
 from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
+    from controllers.underactuated import ReachablePath
     from neck_sim.plant import Plant
 
 __all__ = ["PAPER_CONTROL_TESTS", "PAPER_TABLE3", "TABLE3_CASES", "default_log_path", "control_tests", "table3",
@@ -48,7 +49,7 @@ def _make_plant(params: NeckParams, rigid_cables: bool, seed: int):
     return Plant(params, seed=seed, rigid_cables=rigid_cables)
 
 
-def control_tests(params: NeckParams, trajectory: Trajectory, laws: Sequence[int] = (1, 2, 3), *,
+def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, laws: Sequence[int] = (1, 2, 3), *,
                   log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
                   rigid_cables: bool = False, controller_params: NeckParams | None = None,
                   controller_kwargs: Mapping | None = None,
@@ -96,7 +97,7 @@ def control_tests(params: NeckParams, trajectory: Trajectory, laws: Sequence[int
     return out
 
 
-def table3(params: NeckParams, trajectory: Trajectory, law: int = 2, *,
+def table3(params: NeckParams, trajectory: Trajectory | ReachablePath, law: int = 2, *,
            log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
            controller_kwargs: Mapping | None = None,
            plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None) -> dict[tuple[str, bool], RunResult]:

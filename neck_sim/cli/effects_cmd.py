@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from neck_sim.effects import Effect
+
 HELP = "list the effect vocabulary: what each effect is, its fitted parameters (units), shapes and prerequisites"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
 
 
-def describe(cls) -> tuple[str, str, str, str]:
+def describe(cls: type[Effect]) -> tuple[str, str, str, str]:
     """(parameters, shapes, requires, plant) of an effect class, as text."""
     params = ", ".join(f"{c.symbol} [{c.unit}]" + ("" if c.per == "one" else f" per {c.per}") for c in cls.columns)
     shapes = ", ".join(f"{s.name} [{s.unit}]" + (f" {s.default:g} in {list(s.grid)}" if s.grid else
@@ -19,7 +25,7 @@ def describe(cls) -> tuple[str, str, str, str]:
     return params or "-", shapes or "-", ", ".join(cls.requires) or "-", plant
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim import effects
 
     rows = [(cls.name, cls.description, *describe(cls)) for cls in effects.registered()]
