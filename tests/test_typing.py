@@ -101,7 +101,7 @@ def test_public_modules_exist():
 
 
 def test_public_functions_are_annotated():
-    found = [line for m in PUBLIC_MODULES for line in unannotated(module_path(ROOT, m))]
+    found = [f"{m}: {line}" for m in PUBLIC_MODULES for line in unannotated(module_path(ROOT, m))]
     assert not found, "unannotated public parameters or returns:\n" + "\n".join(found)
 
 
