@@ -285,9 +285,8 @@ def issue_references(root):
     for top in SCANNED:
         for f in sorted((root / top).rglob("*.py")):
             for lineno, line in enumerate(f.read_text().splitlines(), 1):
-                for m in ISSUE_REFERENCE.finditer(line):
-                    hits.append(f"{f.relative_to(root)}:{lineno}: {m.group(0)!r}")
-    return sorted(hits)
+                hits += [(f.relative_to(root).as_posix(), lineno, m.group(0)) for m in ISSUE_REFERENCE.finditer(line)]
+    return [f"{path}:{lineno}: {text!r}" for path, lineno, text in sorted(hits)]
 
 
 def test_no_issue_references():
