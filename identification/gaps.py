@@ -37,8 +37,8 @@ def _cable(name: str) -> int:
     return int(name.split("(")[1].rstrip(")")) - 1
 
 
-def gap_lines(fits: Sequence[tuple[str, Sequence[str], np.ndarray, np.ndarray, np.ndarray]], *, tension: np.ndarray, x_c_dot: np.ndarray, theta_dot: np.ndarray,
-              taut: np.ndarray) -> list[str]:
+def gap_lines(fits: Sequence[tuple[str, Sequence[str], np.ndarray, np.ndarray, np.ndarray]], *,
+              tension: np.ndarray, x_c_dot: np.ndarray, theta_dot: np.ndarray, taut: np.ndarray) -> list[str]:
     """One line per parameter some model does not identify: what is missing, what to record.
 
     ``fits`` is a sequence of (model name, names (p,), value (p,), sigma (p,), mask (p,) True =

@@ -427,8 +427,8 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None,
     lines = [f"Table 1: identified parameters -- ours (relative sigma) | {ref_name}"
              + (" (relative sigma)" if paper else " (our difference)")]
     if not paper:
-        lines.append(f"  {cast(NeckParams, p).n_joints} joints, {m} cables in the routing's order; the paper's Tables 1-2 are for its "
-                     f"3-joint routing and are not compared")
+        lines.append(f"  {cast(NeckParams, p).n_joints} joints, {m} cables in the routing's order; the paper's "
+                     f"Tables 1-2 are for its 3-joint routing and are not compared")
     head = f"{'':8}"
     cols = []
     if result.elastic is not None:

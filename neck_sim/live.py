@@ -92,8 +92,9 @@ class LiveView:
         self._viz_period = 1.0 / rate_hz
         self._subscribed = threading.Event()
         self._context = foxglove.Context()
+        self._server: foxglove.WebSocketServer | None
         try:
-            self._server: foxglove.WebSocketServer | None = foxglove.start_server(name="neck-sim", host=host, port=port, context=self._context,
+            self._server = foxglove.start_server(name="neck-sim", host=host, port=port, context=self._context,
                                                  server_listener=_listener(self._subscribed),
                                                  message_backlog_size=_BACKLOG)
         except Exception as exc:       # the SDK's error for a port in use or a bad host

@@ -70,7 +70,7 @@ def package_version() -> str:
 
 
 def one_line(text: str | BaseException) -> str:
-    """``text`` (or an exception's message) on one line: its lines joined with '; ' (after a ':' or '(' with a space)."""
+    """``text`` on one line: its lines joined with '; ' (after a ':' or '(' with a space)."""
     lines = [line.strip() for line in str(text).splitlines() if line.strip()]
     out = ""
     for line in lines:
