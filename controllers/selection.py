@@ -69,8 +69,7 @@ def _paper_routing(params: NeckParams) -> bool:
 
 
 def choose_controller(params: NeckParams, requested: str | None = None, *, laws: Sequence[int] | None = None,
-                      rigid_cables: bool = False,
-                      cable_model: str | None = None, table3: bool = False) -> Choice:
+                      rigid_cables: bool = False, cable_model: str | None = None, table3: bool = False) -> Choice:
     """The controller for ``params``' neck: ``requested`` checked (None or ``"auto"``: chosen).
 
     The automatic choice: ``inverse-statics`` for a routing other than the paper's; on the paper's

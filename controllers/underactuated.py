@@ -179,8 +179,7 @@ class UnderactuatedController:
     law = 0     # not one of the paper's computed-torque laws (logs record it as 0)
 
     def __init__(self, params: NeckParams, *, f_s: npt.ArrayLike | None = None, bandwidth: float = 20.0,
-                 integral: float = 0.0,
-                 estimate_every: int = 10) -> None:
+                 integral: float = 0.0, estimate_every: int = 10) -> None:
         self.params = params
         m = params.n_cables
         self.f_s = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)

@@ -154,8 +154,7 @@ def _mean_abs(x) -> float:
 
 
 def reconstruct_elongation(force: np.ndarray, theta_dot: np.ndarray, params: NeckParams, *, k: np.ndarray,
-                           lam: np.ndarray, f_s: np.ndarray, c_a: float,
-                           dt: float) -> np.ndarray:
+                           lam: np.ndarray, f_s: np.ndarray, c_a: float, dt: float) -> np.ndarray:
     """x_c (T, m) m by eq (58) over logged forces (T, m) and motor speeds, from the static start.
 
     Each step is ``controllers.estimators.ElongationEstimator.step``; the first sample is the

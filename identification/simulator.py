@@ -107,8 +107,7 @@ class SimulatorComparison:
 
 
 def compare_simulators(log: Log, result: IdentificationResult, *, law: int = 1, trajectory: Trajectory | None = None,
-                       seed: int = 0, damping: float = 20.0,
-                       progress: bool = True) -> SimulatorComparison:
+                       seed: int = 0, damping: float = 20.0, progress: bool = True) -> SimulatorComparison:
     """Replay the log's reference on the two simulators of §5.6 and compare with the log.
 
     ``log``: :class:`neck_sim.logs.Log` of the measured run (motors, camera, reference, read from

@@ -347,8 +347,7 @@ def elongation_series(tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: 
 
 
 def rigid_acceleration(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, f: npt.ArrayLike, params: NeckParams,
-                       friction: bool = True, *,
-                       allow_outside_range: bool = False) -> np.ndarray:
+                       friction: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """alpha_ddot of eq (32) with inextensible cables (x_c = 0), (..., N), rad/s^2.
 
     Motor speeds for friction follow eq (21): theta_dot = (R/r_d) Z^T alpha_dot.
@@ -396,8 +395,7 @@ def elastic_derivative(state: ElasticState, f: npt.ArrayLike, params: NeckParams
 
 
 def simulate_elastic(alpha0: npt.ArrayLike, theta0: npt.ArrayLike, forces: Callable[[float], np.ndarray],
-                     duration: float,
-                     params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
+                     duration: float, params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
                      alpha_dot0: npt.ArrayLike | None = None, theta_dot0: npt.ArrayLike | None = None,
                      rtol: float = 1e-8, atol: float = 1e-10,
                      allow_outside_range: bool = False) -> tuple[np.ndarray, ElasticState]:

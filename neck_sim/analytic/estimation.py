@@ -39,8 +39,7 @@ def _right_segments(alpha: np.ndarray, params: NeckParams):
 
 
 def estimate_alpha_triangular(theta: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None, *,
-                              tol: float = 1e-13,
-                              max_iter: int = 60) -> np.ndarray:
+                              tol: float = 1e-13, max_iter: int = 60) -> np.ndarray:
     """alpha_hat from the N right cables, joint after joint (eq 33), shape (..., N), rad.
 
     Joint j's right cable length is sum_{i<j} case (d)(alpha_i) + case (b)(alpha_j); case (b) is
@@ -123,8 +122,7 @@ def _pinv_rows(Z, rhs, out) -> int:
 
 
 def pinv_increment(alpha_hat: npt.ArrayLike, d_theta: npt.ArrayLike, params: NeckParams,
-                   d_elongation: npt.ArrayLike | None = None, *,
-                   allow_outside_range: bool = False) -> np.ndarray:
+                   d_elongation: npt.ArrayLike | None = None, *, allow_outside_range: bool = False) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
     Needs at least as many cables as joints (m >= N), so that Z has full row rank and
@@ -160,8 +158,7 @@ def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:
 
 
 def estimate_alpha_pinv(theta: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None,
-                        alpha0: npt.ArrayLike | None = None, *,
-                        tol: float | None = None) -> np.ndarray:
+                        alpha0: npt.ArrayLike | None = None, *, tol: float | None = None) -> np.ndarray:
     """alpha_hat over a time series by eq (35) corrected, all m cables, shape (..., T, N), rad.
 
     ``theta`` (..., T, m); ``elongation`` (..., T, m) or None; ``alpha0`` (..., N) the pose at
