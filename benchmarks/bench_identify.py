@@ -3,7 +3,7 @@
 Speed: ``identify_log`` on the paper's 84 s identification trajectory (a synthetic flat-output
 run written as MCAP), as a ratio to reading that log (``read_log``), both measured here.
 
-Study (issue 6 items 4-6, minutes of simulation): the paper's identification trajectory, closed
+Study (minutes of simulation): the paper's identification trajectory, closed
 loop under law 1 on the default MuJoCo plant (seed 0), identified from its measured topics;
 the same with a perfect camera (what the 1 deg camera noise costs); a camera-noise Monte Carlo on
 the flat-output model (the spread the eq (50) sigmas should describe); the excitation optimised

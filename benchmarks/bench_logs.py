@@ -3,7 +3,7 @@
 The run has /neck/motors, /neck/reference, /neck/estimate, /neck/truth at 500 Hz, /neck/camera at
 30 Hz and the Foxglove /tf and /neck/scene messages at 30 Hz, with full-precision numbers.  Prints
 each timing in seconds and as a ratio to a baseline measured in the same run: iterating every
-message of the file with the ``mcap`` library's reader without decoding it.  The issue asks for
+message of the file with the ``mcap`` library's reader without decoding it.  The target is
 reading (all topics into numpy) under 1 s.
 
     python benchmarks/bench_logs.py [--seconds 100] [--repeat 3]

@@ -1,4 +1,4 @@
-"""Plant speed: one control period of the simulated neck against bare ``mj_step`` (target: under 1.5x bare mj_step).
+"""Plant speed: one control period of the simulated neck against bare ``mj_step``.
 
 Measured in the same run, interleaved, best of ``--repeat`` loops of ``--periods`` control
 periods (short loops: the minimum filters out a shared machine's load), with a smooth

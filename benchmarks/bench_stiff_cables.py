@@ -1,4 +1,4 @@
-"""Stiff cables (issue 13 item 6): what a control period costs as the cable damping c_a grows.
+"""Stiff cables: what a control period costs as the cable damping c_a grows.
 
 Measured in the same run, interleaved, best of ``--repeat`` loops of ``--periods`` control periods
 (the loops of ``bench_plant.py``), at the default 0.5 ms timestep:

@@ -30,12 +30,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.linalg import expm, solve_discrete_are
 
 from controllers.computed_torque import (ComputedTorqueController, ControlLaw, ControlStep, MotorReference,
                                          outside_workspace)
 from controllers.tension import distribute_tensions
 from controllers.trajectories import reference_feedforward
+from neck_sim.trajectory import TrajectorySample
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, linkage_dynamics
@@ -76,14 +78,14 @@ class LinearNeck:
     def m(self) -> int:
         return self.Z.shape[1]
 
-    def neck_matrices(self):
+    def neck_matrices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Continuous neck dynamics driven by the motors: Mn a'' = -Ka a - Ca a' + Zk s + Zc s'.
 
         Returns (Ka, Ca, Zk, Zc); s is the motor slides' deviation from the operating point (m)."""
         Z = self.Z
         return (self.Kf + (Z * self.Kc) @ Z.T, (Z * self.C) @ Z.T, Z * self.Kc, Z * self.C)
 
-    def state_space(self):
+    def state_space(self) -> tuple[np.ndarray, np.ndarray]:
         """A (2(N+m), 2(N+m)), B (2(N+m), m) of x = [alpha, s, alpha', s'], u = forces (N)."""
         n, m = self.n, self.m
         Ka, Ca, Zk, Zc = self.neck_matrices()
@@ -112,7 +114,7 @@ def cable_damping(x, params: NeckParams) -> np.ndarray:
     return np.where(np.asarray(x) > 0, np.asarray(cab.c_a) / (1.0 - lam * xe), 0.0)
 
 
-def linearise(params: NeckParams, alpha=None, *, t_min: float | None = None,
+def linearise(params: NeckParams, alpha: npt.ArrayLike | None = None, *, t_min: float | None = None,
               friction_scale: float = 0.3) -> LinearNeck:
     """:class:`LinearNeck` at pose ``alpha`` (N,) rad (default straight), held at rest with the
     least tensions of eqs (63)-(65) above ``t_min`` (N, default ``actuation.t_min``).
@@ -155,7 +157,7 @@ def _discretise(A: np.ndarray, B: np.ndarray, dt: float):
     return F[:size, :size], F[:size, size:]
 
 
-def _with_integral(lin: LinearNeck):
+def _with_integral(lin: LinearNeck) -> tuple[np.ndarray, np.ndarray]:
     A, B = lin.state_space()
     n, size = lin.n, A.shape[0]
     Ai = np.zeros((size + n, size + n))
@@ -202,7 +204,7 @@ class ElasticLQRController:
     law = ControlLaw.FRICTION          # its feed-forward is law 2's (friction at the desired speeds)
 
     def __init__(self, params: NeckParams, *, weights: LQRWeights = LQRWeights(), friction_scale: float = 0.3,
-                 t_min: float | None = None, f_min: float | None = None, f_max: float | None = None):
+                 t_min: float | None = None, f_min: float | None = None, f_max: float | None = None) -> None:
         if not (np.isfinite(friction_scale) and friction_scale >= 0):
             raise ValueError(f"friction_scale: must be finite and >= 0, got {friction_scale!r}")
         self.params = params
@@ -224,11 +226,11 @@ class ElasticLQRController:
                 f"{w.alpha_dot:g}, integral {w.integral:g} per N^2), t_min = {self.t_min:g} N, "
                 f"f_min = {self.f_min:g} N, f_max = {self.f_max:g} N")
 
-    def motor_reference(self, sample) -> MotorReference:
+    def motor_reference(self, sample: TrajectorySample) -> MotorReference:
         """Desired motor motion, believed friction and eq (65) bounds (law 2's), batched."""
         return self._law2.motor_reference(sample)
 
-    def reset(self, alpha0=None, theta0=None) -> None:
+    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None:
         """Start from pose ``alpha0`` (default straight) at rest, encoders reading ``theta0`` there
         (None: the first reading given to :meth:`step`)."""
         n, m = self.params.n_joints, self.params.n_cables
@@ -261,7 +263,7 @@ class ElasticLQRController:
         self.alpha_dot = ad + delta
         self.alpha = a + dt * self.alpha_dot
 
-    def step(self, theta, ref: MotorReference) -> ControlStep:
+    def step(self, theta: npt.ArrayLike, ref: MotorReference) -> ControlStep:
         """Forces for the next period from the encoder reading ``theta`` (N+1,) rad and one
         reference sample (``motor_reference(...).at(k)``).  ``gamma`` is the feed-forward torque
         of eq (66) at the reference and ``w`` the reference acceleration (no eq 59 loop)."""

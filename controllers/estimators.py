@@ -29,6 +29,7 @@ from __future__ import annotations
 from enum import Enum
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.dynamics import arctan_friction, elongation_step
 from neck_sim.analytic.estimation import pinv_increment
@@ -62,7 +63,7 @@ def _per_cable(value, n_cables: int, name: str) -> np.ndarray:
 
 
 @dual
-def estimated_tension(force, friction):
+def estimated_tension(force: np.ndarray | float, friction: np.ndarray | float) -> np.ndarray:
     """t_hat = max(f - friction, 0) (N): the commanded force less the believed friction; a cable cannot push."""
     return np.maximum(force - friction, 0.0)
 
@@ -73,7 +74,8 @@ class ElongationEstimator:
     ``k`` N/m, ``lam`` 1/m, ``c_a`` N s/m (scalar or per cable), ``f_s`` N, ``c_s`` s/rad, ``dt`` s.
     """
 
-    def __init__(self, k, lam, c_a, f_s, c_s: float, dt: float):
+    def __init__(self, k: npt.ArrayLike, lam: npt.ArrayLike, c_a: npt.ArrayLike, f_s: npt.ArrayLike, c_s: float,
+                 dt: float) -> None:
         self.k = _per_cable(k, np.size(k), "k")
         n1 = self.k.size
         self.lam = _per_cable(lam, n1, "lam")
@@ -88,8 +90,9 @@ class ElongationEstimator:
         self.x = np.zeros(n1)
 
     @classmethod
-    def for_model(cls, model: CableModel | str, params: NeckParams, *, k=None, lam=None, c_a=None,
-                  f_s=None) -> "ElongationEstimator | None":
+    def for_model(cls, model: CableModel | str, params: NeckParams, *, k: npt.ArrayLike | None = None,
+                  lam: npt.ArrayLike | None = None, c_a: npt.ArrayLike | None = None,
+                  f_s: npt.ArrayLike | None = None) -> "ElongationEstimator | None":
         """Estimator of cable model ``model`` (None for inextensible cables).
 
         Unset coefficients take the paper's values (``default_params(N)``: Table 1 for model 1,
@@ -102,6 +105,8 @@ class ElongationEstimator:
         paper = default_params(params.n_joints)
         if model is CableModel.CONSTANT:
             k = paper.cables.k_linear if k is None else k
+            if k is None:
+                raise ValueError("cable model constant: no k given and the paper's k_linear is not set")
             lam = 0.0 if lam is None else lam
         else:
             k = paper.cables.k if k is None else k
@@ -110,15 +115,15 @@ class ElongationEstimator:
                    paper.friction.f_s if f_s is None else f_s, params.friction.c_s,
                    1.0 / params.control.rate_hz)
 
-    def reset(self, x0=None) -> None:
+    def reset(self, x0: npt.ArrayLike | None = None) -> None:
         self.x = np.zeros_like(self.k) if x0 is None else _per_cable(x0, self.k.size, "x0")
 
-    def tension(self, force, theta_dot) -> np.ndarray:
+    def tension(self, force: npt.ArrayLike, theta_dot: npt.ArrayLike) -> np.ndarray:
         """t_hat = max(f - (2/pi) arctan(c_s theta_dot) f_s, 0), (N+1,) N."""
         fr = arctan_friction(np.asarray(theta_dot, dtype=float), self.c_s, self.f_s)
         return estimated_tension(np.asarray(force, dtype=float), fr)
 
-    def step(self, force, theta_dot) -> np.ndarray:
+    def step(self, force: npt.ArrayLike, theta_dot: npt.ArrayLike) -> np.ndarray:
         """Advance one period with the force (N+1,) N applied during it and the motor speed (rad/s)."""
         self.x = elongation_step(self.x, self.tension(force, theta_dot), self.dt, self.k, self.lam, self.c_a)
         return self.x
@@ -134,15 +139,15 @@ class ElongationEstimator:
 class JointAngleEstimator:
     """alpha_hat (N,) from successive encoder readings by eq (35) corrected."""
 
-    def __init__(self, params: NeckParams, elongation: ElongationEstimator | None = None):
+    def __init__(self, params: NeckParams, elongation: ElongationEstimator | None = None) -> None:
         self.params = params
         self.elongation = elongation
         n = params.n_joints
         self.alpha_hat = np.zeros(n)
-        self.theta = None
+        self.theta: np.ndarray | None = None
         self.x = np.zeros(params.n_cables)
 
-    def reset(self, alpha0=None, theta0=None) -> None:
+    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None:
         """Start at pose ``alpha0`` (default straight) with the cables unstretched.
 
         ``theta0`` is the encoder reading at that pose; None takes the first reading given to
@@ -156,7 +161,8 @@ class JointAngleEstimator:
         if self.elongation is not None:
             self.elongation.reset()
 
-    def update(self, theta, force_prev=None, theta_dot_prev=None) -> np.ndarray:
+    def update(self, theta: npt.ArrayLike, force_prev: npt.ArrayLike | None = None,
+               theta_dot_prev: npt.ArrayLike | None = None) -> np.ndarray:
         """New estimate from encoder reading ``theta`` (N+1,) rad.
 
         ``force_prev`` (N+1,) N and ``theta_dot_prev`` (N+1,) rad/s are the force commanded and the
@@ -168,6 +174,8 @@ class JointAngleEstimator:
             return self.alpha_hat
         dx = None
         if self.elongation is not None and force_prev is not None:
+            if theta_dot_prev is None:
+                raise ValueError("theta_dot_prev: needed with force_prev (the elongation model's friction)")
             x_new = self.elongation.step(force_prev, theta_dot_prev)
             dx = x_new - self.x
             self.x = x_new.copy()

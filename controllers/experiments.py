@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import datetime
 import os
-from typing import Callable, Mapping
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 from controllers.closed_loop import RunResult, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import Trajectory
 from neck_sim.params import NeckParams
+
+if TYPE_CHECKING:
+    from controllers.underactuated import ReachablePath
+    from neck_sim.plant import Plant
 
 __all__ = ["PAPER_CONTROL_TESTS", "PAPER_TABLE3", "TABLE3_CASES", "default_log_path", "control_tests", "table3",
            "format_control_table", "format_table3"]
@@ -45,10 +49,11 @@ def _make_plant(params: NeckParams, rigid_cables: bool, seed: int):
     return Plant(params, seed=seed, rigid_cables=rigid_cables)
 
 
-def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
+def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, laws: Sequence[int] = (1, 2, 3), *,
                   log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
                   rigid_cables: bool = False, controller_params: NeckParams | None = None,
-                  controller_kwargs: Mapping | None = None, plant_factory=None,
+                  controller_kwargs: Mapping | None = None,
+                  plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None,
                   controller: str = "computed-torque") -> dict[str, RunResult]:
     """Run each law on a fresh plant; returns ``{"law 1": RunResult, ...}``.
 
@@ -92,9 +97,10 @@ def control_tests(params: NeckParams, trajectory: Trajectory, laws=(1, 2, 3), *,
     return out
 
 
-def table3(params: NeckParams, trajectory: Trajectory, law: int = 2, *,
+def table3(params: NeckParams, trajectory: Trajectory | ReachablePath, law: int = 2, *,
            log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
-           controller_kwargs: Mapping | None = None, plant_factory=None) -> dict[tuple[str, bool], RunResult]:
+           controller_kwargs: Mapping | None = None,
+           plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None) -> dict[tuple[str, bool], RunResult]:
     """The four runs of Table 3: plant ``rigid``/``identified`` cables x controller with/without
     pulleys (``geometry.r = 0`` in the controller's model only; the plant always has them)."""
     make = plant_factory or _make_plant

@@ -113,7 +113,7 @@ def errors_figure(results: Mapping[str, RunResult], kind: str = "estimation") ->
     return fig
 
 
-def save_figure(fig: Figure, path) -> str:
+def save_figure(fig: Figure, path: str | os.PathLike[str]) -> str:
     """Write ``fig`` as PNG to ``path`` atomically; returns the path."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=120)
@@ -125,7 +125,7 @@ def _slug(label: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", label).strip("_").lower() or "run"
 
 
-def save_run_plots(results: Mapping[str, RunResult], directory) -> list[str]:
+def save_run_plots(results: Mapping[str, RunResult], directory: str | os.PathLike[str]) -> list[str]:
     """Figures 11-16 for one or several labelled runs into ``directory``; returns the PNG paths.
 
     One ``angles_<label>.png`` per run, then ``forces.png``, ``estimation_error.png`` and

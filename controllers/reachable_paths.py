@@ -34,9 +34,10 @@ Units: tensions N, angles rad (degrees only in messages and ``bend_deg``), times
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from controllers.trajectories import FORCE_MARGIN, HOLD_TIME, MOVE_TIME
 from controllers.underactuated import ReachablePath
@@ -45,6 +46,7 @@ from neck_sim.analytic.dynamics import gravity_spring_torque
 from neck_sim.analytic.statics import (equilibrium_for_forces, force_stiffness, head_jacobian, least_tensions,
                                        motor_angles_for, motor_stiffness)
 from neck_sim.params import NeckParams
+from neck_sim.trajectory import Trajectory
 
 __all__ = ["Pretension", "straight_pretension", "bending_directions", "largest_move", "shapes_tour",
            "excitation_path", "check_holdable", "BEND_DEG", "LEVEL_STEP"]
@@ -144,7 +146,7 @@ def _feasible(params: NeckParams, start: Pretension, w: np.ndarray, lo: float, h
     return bool(np.abs(path.grid_alpha - start.alpha).max() <= bend)     # bent from the start pose
 
 
-def largest_move(params: NeckParams, start: Pretension, direction, *, bend_deg: float = BEND_DEG,
+def largest_move(params: NeckParams, start: Pretension, direction: npt.ArrayLike, *, bend_deg: float = BEND_DEG,
                  margin: float = FORCE_MARGIN, iterations: int = 6) -> np.ndarray | None:
     """The waypoint start + s direction (m,) N with the largest s in (0, bend_deg] whose path from
     the start stays feasible (module docstring); None when not even a small step is."""
@@ -192,7 +194,7 @@ def shapes_tour(params: NeckParams, duration_scale: float = 1.0, *, bend_deg: fl
 
 
 def excitation_path(params: NeckParams, duration_scale: float = 1.0, *, bend_deg: float = BEND_DEG,
-                    margin: float = FORCE_MARGIN, levels=(0.2, 0.6)) -> ReachablePath:
+                    margin: float = FORCE_MARGIN, levels: Sequence[float] = (0.2, 0.6)) -> ReachablePath:
     """The identification experiment of a neck the paper's laws cannot move (module docstring).
 
     At each pretension level (``levels``: positions in the stable range, see
@@ -214,6 +216,8 @@ def excitation_path(params: NeckParams, duration_scale: float = 1.0, *, bend_deg
             plus, minus = moves[f"{shape}+"], moves[f"{shape}-"]
             waypoints += [plus, minus, start.tensions, minus, plus, start.tensions]
             labels += [f"{shape}+", f"{shape}-", "start", f"{shape}-", f"{shape}+", "start"]
+    if first is None:
+        raise ValueError("levels: at least one pretension level is needed")
     waypoints.append(first.tensions)
     labels.append(f"start {first.level:g} N")
     path = ReachablePath(params, waypoints, move_time=MOVE_TIME * duration_scale,
@@ -222,7 +226,8 @@ def excitation_path(params: NeckParams, duration_scale: float = 1.0, *, bend_deg
     return path
 
 
-def check_holdable(trajectory, params: NeckParams, *, margin: float = FORCE_MARGIN, sample_dt: float = 0.05) -> None:
+def check_holdable(trajectory: Trajectory, params: NeckParams, *, margin: float = FORCE_MARGIN,
+                   sample_dt: float = 0.05) -> None:
     """Refuse (ValueError) a joint-space trajectory this neck cannot hold under position control:
     at some pose no tensions in [0, margin f_max] balance gravity and springs (eq 30 at rest), or the
     pose is unstable with the motors held.  The message names the time, the pose and the cables."""
@@ -241,7 +246,7 @@ def check_holdable(trajectory, params: NeckParams, *, margin: float = FORCE_MARG
         residuals.append(Z[k] @ sol.x - g[k])
     residuals = np.abs(np.array(residuals))
     if residuals.max() > 1e-3 * scale:
-        k, j = np.unravel_index(np.argmax(residuals), residuals.shape)      # the pose furthest out of reach
+        k, j = map(int, np.unravel_index(np.argmax(residuals), residuals.shape))   # the pose furthest out of reach
         x = held[k]
         at = [f"c{c + 1} at {'0' if x[c] < 1e-6 else f'{hi:g}'} N" for c in range(params.n_cables)
               if x[c] < 1e-6 or x[c] > hi - 1e-6]

@@ -17,9 +17,14 @@ refusing one it cannot before any simulation.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Sequence, cast
 
 from neck_sim.params import NeckParams
+
+if TYPE_CHECKING:
+    from controllers.underactuated import ReachablePath
+    from neck_sim.params import Routing
+    from neck_sim.trajectory import Trajectory
 
 __all__ = ["CONTROLLERS", "TRAJECTORY_NAMES", "LQR_FROM_JOINTS", "PLANT_TIMESTEP", "Choice", "choose_controller",
            "make_run_trajectory", "plant_timestep"]
@@ -60,11 +65,11 @@ def plant_timestep(controller: str) -> float | None:
 
 
 def _paper_routing(params: NeckParams) -> bool:
-    return params.routing.is_paper_kind(params.n_joints)
+    return cast("Routing", params.routing).is_paper_kind(params.n_joints)      # __post_init__ sets it
 
 
-def choose_controller(params: NeckParams, requested: str | None = None, *, laws=None, rigid_cables: bool = False,
-                      cable_model: str | None = None, table3: bool = False) -> Choice:
+def choose_controller(params: NeckParams, requested: str | None = None, *, laws: Sequence[int] | None = None,
+                      rigid_cables: bool = False, cable_model: str | None = None, table3: bool = False) -> Choice:
     """The controller for ``params``' neck: ``requested`` checked (None or ``"auto"``: chosen).
 
     The automatic choice: ``inverse-statics`` for a routing other than the paper's; on the paper's
@@ -96,7 +101,8 @@ def choose_controller(params: NeckParams, requested: str | None = None, *, laws=
                                      f"N = {n}, {m} cables)")
 
 
-def make_run_trajectory(name: str | None, params: NeckParams, controller: str, duration_scale: float = 1.0):
+def make_run_trajectory(name: str | None, params: NeckParams, controller: str,
+                        duration_scale: float = 1.0) -> Trajectory | ReachablePath:
     """The trajectory ``name`` (None: the controller's default) for ``controller`` on ``params``.
 
     The paper's laws run the §7 and §5.2.2 trajectories scaled to the force limits

@@ -22,6 +22,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.dynamics import arctan_friction
 from neck_sim.analytic.geometry import check_cables
@@ -50,12 +51,13 @@ class TensionDistribution(NamedTuple):
     binding: np.ndarray
 
     @property
-    def any_saturated(self) -> np.ndarray:
+    def any_saturated(self) -> np.ndarray | np.bool_:
         """(...) bool: at least one cable was clipped, so Z f != Gamma."""
         return self.saturated.any(axis=-1)
 
 
-def tension_lower_bounds(theta_dot_d, theta_ddot_d, params: NeckParams, *, f_s=None,
+def tension_lower_bounds(theta_dot_d: npt.ArrayLike, theta_ddot_d: npt.ArrayLike, params: NeckParams, *,
+                         f_s: npt.ArrayLike | None = None,
                          t_min: float | None = None, f_min: float | None = None) -> np.ndarray:
     """Lower bound on each commanded force, eq (65), (..., N+1) N.
 
@@ -79,7 +81,8 @@ def tension_lower_bounds(theta_dot_d, theta_ddot_d, params: NeckParams, *, f_s=N
     return np.maximum(bound, f_min)
 
 
-def distribute_tensions(Z, gamma, lower, f_max: float) -> TensionDistribution:
+def distribute_tensions(Z: npt.ArrayLike, gamma: npt.ArrayLike, lower: npt.ArrayLike,
+                        f_max: float) -> TensionDistribution:
     """Cable forces producing ``gamma`` with every force at least ``lower`` (eqs 63-65), batched.
 
     Z (..., N, N+1) m, gamma (..., N) N m, lower (..., N+1) N, f_max N.  Raises

@@ -1,4 +1,4 @@
-"""Moving a neck with fewer cables than N + 1 (issue 15, item 5): inverse statics + motor PID.
+"""Moving a neck with fewer cables than N + 1: inverse statics + motor PID.
 
 A neck with m < N + 1 cables holds only an m-dimensional set of poses (the equilibria of
 :mod:`neck_sim.analytic.statics`), so its reference must stay on that set, and its pose follows
@@ -27,6 +27,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from controllers.computed_torque import ControlStep
 from neck_sim.analytic.cables import cable_lengths, transmission_matrix
@@ -50,7 +51,7 @@ class ReachableSample(NamedTuple):
     tension: np.ndarray
 
 
-def holding_tensions(alpha, params: NeckParams, t_min: float = 0.0) -> np.ndarray:
+def holding_tensions(alpha: npt.ArrayLike, params: NeckParams, t_min: float = 0.0) -> np.ndarray:
     """Tensions (..., m) N with Z t = g at poses ``alpha`` (..., N): Z^+ g, least squares.
 
     On the reachable set of an m <= N neck with a well-conditioned Z this is the unique holding
@@ -79,8 +80,10 @@ class ReachablePath:
     cables to take up their slack); equilibria solved every ``grid_dt`` s.
     """
 
-    def __init__(self, params: NeckParams, waypoints, *, move_time: float = 2.5, hold_time: float = 1.0,
-                 grid_dt: float = 0.05, name: str = "reachable path", alpha0=None):
+    labels: list[str]       # a name per waypoint, set by the planners of controllers.reachable_paths
+
+    def __init__(self, params: NeckParams, waypoints: npt.ArrayLike, *, move_time: float = 2.5, hold_time: float = 1.0,
+                 grid_dt: float = 0.05, name: str = "reachable path", alpha0: npt.ArrayLike | None = None) -> None:
         from scipy.interpolate import CubicSpline
 
         w = np.asarray(waypoints, dtype=float)
@@ -118,7 +121,7 @@ class ReachablePath:
         self.grid_t, self.grid_alpha = t, alpha
         self._spline = CubicSpline(t, alpha, axis=0, bc_type="clamped")
 
-    def forces_at(self, t) -> np.ndarray:
+    def forces_at(self, t: npt.ArrayLike) -> np.ndarray:
         """Tensions (..., m) N on the path at times t (cycloidal between waypoints)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
         k = np.clip(np.searchsorted(self.knots, t, side="right") - 1, 0, len(self.knots) - 2)
@@ -131,7 +134,7 @@ class ReachablePath:
     def n_joints(self) -> int:
         return self.params.n_joints
 
-    def sample(self, t) -> ReachableSample:
+    def sample(self, t: npt.ArrayLike) -> ReachableSample:
         """Reference poses, velocities, accelerations t.shape + (N,) and holding tensions (m,)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
         return ReachableSample(self._spline(t), self._spline(t, 1), self._spline(t, 2), self.forces_at(t))
@@ -175,8 +178,8 @@ class UnderactuatedController:
 
     law = 0     # not one of the paper's computed-torque laws (logs record it as 0)
 
-    def __init__(self, params: NeckParams, *, f_s=None, bandwidth: float = 20.0, integral: float = 0.0,
-                 estimate_every: int = 10):
+    def __init__(self, params: NeckParams, *, f_s: npt.ArrayLike | None = None, bandwidth: float = 20.0,
+                 integral: float = 0.0, estimate_every: int = 10) -> None:
         self.params = params
         m = params.n_cables
         self.f_s = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
@@ -208,7 +211,7 @@ class UnderactuatedController:
         theta_dot = np.einsum("...ij,...i->...j", transmission_matrix(a, p), ad) / self.ratio
         return UnderactuatedReference(a, t, theta, theta_dot, motor_friction(theta_dot, p, self.f_s))
 
-    def reset(self, alpha0=None, theta0=None) -> None:
+    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None:
         n, m = self.params.n_joints, self.params.n_cables
         self.alpha_hat = np.zeros(n) if alpha0 is None else np.asarray(alpha0, dtype=float).copy()
         self._integral = np.zeros(m)
@@ -222,7 +225,7 @@ class UnderactuatedController:
         self._lengths = cable_lengths(self.alpha_hat, self.params)
         self._Z = transmission_matrix(self.alpha_hat, self.params)
 
-    def step(self, theta, ref: UnderactuatedReference) -> ControlStep:
+    def step(self, theta: npt.ArrayLike, ref: UnderactuatedReference) -> ControlStep:
         """Forces (m,) N for the next period from encoder angles ``theta`` (m,) rad."""
         p = self.params
         theta = np.asarray(theta, dtype=float)

@@ -27,14 +27,16 @@ trajectory's amplitudes and move times within the workspace and force limits.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from controllers.tension import distribute_tensions, tension_lower_bounds
 from neck_sim.analytic import (cable_lengths, elongation_series, linkage_dynamics, motor_friction,
                                transmission_matrix)
 from neck_sim.params import NeckParams
+from neck_sim.trajectory import Trajectory
 
 from identification import regressors as reg
 from identification.preprocessing import Measurements, Prepared
@@ -56,7 +58,8 @@ class PredictedRun(NamedTuple):
     x_c: np.ndarray        # (T, N+1) m, elongation
 
 
-def predict_run(alpha, alpha_dot, alpha_ddot, t, params: NeckParams, *, t_min: float | None = None) -> PredictedRun:
+def predict_run(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, alpha_ddot: npt.ArrayLike, t: npt.ArrayLike,
+                params: NeckParams, *, t_min: float | None = None) -> PredictedRun:
     """Signals of the exactly tracked trajectory alpha(t) (T, N) with its derivatives, on times t (T,).
 
     The plant is ``params`` (friction.f_s, cables.k/lam/c_a are the "true" values); ``t_min``
@@ -99,7 +102,8 @@ class CableExcitation(NamedTuple):
     reversals: np.ndarray
 
 
-def cable_excitation(t, theta, tension, *, start: float = 1.0, moving: float = 0.5) -> CableExcitation:
+def cable_excitation(t: npt.ArrayLike, theta: npt.ArrayLike, tension: npt.ArrayLike, *, start: float = 1.0,
+                     moving: float = 0.5) -> CableExcitation:
     """What a run exercises per cable: ``t`` (T,) s, motor angles ``theta`` (T, m) rad and tensions
     (T, m) N; samples before ``start`` s (the cables' take-up) are left out, and a reversal counts
     between samples whose speed exceeds ``moving`` rad/s (speed from central differences)."""
@@ -134,7 +138,8 @@ def synthetic_measurements(run: PredictedRun, params: NeckParams, rng: np.random
     return Measurements(run.t, theta, run.force, tc, ac)
 
 
-def prepared_from_prediction(run: PredictedRun, alpha_dot, alpha_ddot, rate_hz: float) -> Prepared:
+def prepared_from_prediction(run: PredictedRun, alpha_dot: npt.ArrayLike, alpha_ddot: npt.ArrayLike,
+                             rate_hz: float) -> Prepared:
     """A :class:`Prepared` of a predicted run sampled at ``rate_hz`` (no noise, no filtering)."""
     step = max(1, int(round(1.0 / (rate_hz * float(np.median(np.diff(run.t)))))))
     h = step * float(np.median(np.diff(run.t)))
@@ -163,7 +168,7 @@ class ExcitationQuality(NamedTuple):
     tension_range: np.ndarray
 
 
-def excitation_quality(trajectory, params: NeckParams, *, rate_hz: float = 100.0,
+def excitation_quality(trajectory: Trajectory, params: NeckParams, *, rate_hz: float = 100.0,
                        obs_rate_hz: float = 31.25) -> ExcitationQuality:
     """Predict the run of ``trajectory`` (``controllers.trajectories.Trajectory``) on ``params``
     and condition the observation matrices it would give (sampled at ``obs_rate_hz``)."""
@@ -178,10 +183,11 @@ def excitation_quality(trajectory, params: NeckParams, *, rate_hz: float = 100.0
         Ws = W / np.linalg.norm(W, axis=0)
         sv = np.linalg.svd(Ws, compute_uv=False)
         conds.append(float(sv[0] / sv[-1]))
-    return ExcitationQuality(*conds, float(run.force.max()), np.ptp(run.tension, axis=0))
+    return ExcitationQuality(conds[0], conds[1], conds[2], float(run.force.max()), np.ptp(run.tension, axis=0))
 
 
-def sequences_trajectory(amplitudes, move_time: float = 2.5, hold_time: float = 1.0, name: str = "identification"):
+def sequences_trajectory(amplitudes: npt.ArrayLike, move_time: float = 2.5, hold_time: float = 1.0,
+                         name: str = "identification") -> Trajectory:
     """The §5.2.2 shape for any amplitudes (S, N) rad: per sequence a, -a, 0, -a, a, 0 from straight."""
     from controllers.trajectories import cycloidal_path
 
@@ -212,7 +218,8 @@ class OptimisedExcitation(NamedTuple):
     evaluations: int
 
 
-def optimise_identification_trajectory(params: NeckParams, *, initial=None, move_time: float = 2.5,
+def optimise_identification_trajectory(params: NeckParams, *, initial: npt.ArrayLike | None = None,
+                                       move_time: float = 2.5,
                                        hold_time: float = 1.0, max_amplitude: float = np.radians(50.0),
                                        force_limit: float | None = None, max_evaluations: int = 300,
                                        rate_hz: float = 50.0) -> OptimisedExcitation:
@@ -229,7 +236,7 @@ def optimise_identification_trajectory(params: NeckParams, *, initial=None, move
     x0 = paper_amplitudes(params.n_joints) if initial is None else np.asarray(initial, dtype=float)
     shape = x0.shape
     limit = 0.9 * params.actuation.f_max if force_limit is None else force_limit
-    best = {"cost": np.inf, "x": None, "n": 0}
+    best: dict[str, Any] = {"cost": np.inf, "x": None, "n": 0}
 
     def cost(x):
         best["n"] += 1

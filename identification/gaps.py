@@ -15,7 +15,10 @@ of the regressors:
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["MIN_SIGNIFICANCE", "not_identified", "gap_lines"]
 
@@ -23,7 +26,7 @@ __all__ = ["MIN_SIGNIFICANCE", "not_identified", "gap_lines"]
 MIN_SIGNIFICANCE = 5.0
 
 
-def not_identified(value, sigma) -> np.ndarray:
+def not_identified(value: npt.ArrayLike, sigma: npt.ArrayLike) -> np.ndarray:
     """Mask (p,): True where |value| < MIN_SIGNIFICANCE sigma or either is not finite."""
     v, s = np.asarray(value, dtype=float), np.asarray(sigma, dtype=float)
     with np.errstate(invalid="ignore"):
@@ -34,7 +37,8 @@ def _cable(name: str) -> int:
     return int(name.split("(")[1].rstrip(")")) - 1
 
 
-def gap_lines(fits, *, tension, x_c_dot, theta_dot, taut) -> list[str]:
+def gap_lines(fits: Sequence[tuple[str, Sequence[str], np.ndarray, np.ndarray, np.ndarray]], *,
+              tension: np.ndarray, x_c_dot: np.ndarray, theta_dot: np.ndarray, taut: np.ndarray) -> list[str]:
     """One line per parameter some model does not identify: what is missing, what to record.
 
     ``fits`` is a sequence of (model name, names (p,), value (p,), sigma (p,), mask (p,) True =
@@ -44,7 +48,7 @@ def gap_lines(fits, *, tension, x_c_dot, theta_dot, taut) -> list[str]:
     """
     known: dict = {}
     for model, names, value, sigma, mask in fits:
-        for j in np.flatnonzero(mask):
+        for j in map(int, np.flatnonzero(mask)):
             rel = 100.0 * sigma[j] / abs(value[j]) if value[j] != 0 else np.inf
             known.setdefault(names[j], []).append(f"{model} model: {value[j]:.4g} ± {sigma[j]:.2g} ({rel:.0f} %)")
     lines = []

@@ -14,7 +14,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Sequence
+
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["LSResult", "solve_weighted"]
 
@@ -60,18 +63,19 @@ class LSResult:
                 "n_rows": self.n_rows}
 
 
-def solve_weighted(W, Y, names=None, units=None, row_weights=None) -> LSResult:
+def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | None = None,
+                   units: Sequence[str] | None = None, row_weights: npt.ArrayLike | None = None) -> LSResult:
     """Least-squares solution of W v + rho = Y (eq 48) with eq (50)'s covariance.
 
     W (r, p), Y (r,), ``row_weights`` (r,) multiply rows of both before solving.  Raises ValueError
     for mismatched shapes, NaN, too few rows (r <= p) or an unidentifiable parameter (a column of
     zeros, or W rank-deficient: the message names the parameters involved).
     """
-    W = np.asarray(W, dtype=float)
-    Y = np.asarray(Y, dtype=float)
-    if W.ndim != 2 or Y.ndim != 1 or W.shape[0] != Y.shape[0]:
-        raise ValueError(f"least squares: expected W (r, p) and Y (r,), got {W.shape} and {Y.shape}")
-    r, p = W.shape
+    Wm = np.asarray(W, dtype=float)
+    Ym = np.asarray(Y, dtype=float)
+    if Wm.ndim != 2 or Ym.ndim != 1 or Wm.shape[0] != Ym.shape[0]:
+        raise ValueError(f"least squares: expected W (r, p) and Y (r,), got {Wm.shape} and {Ym.shape}")
+    r, p = Wm.shape
     names = tuple(names) if names is not None else tuple(f"v{i + 1}" for i in range(p))
     units = tuple(units) if units is not None else ("",) * p
     if len(names) != p or len(units) != p:
@@ -80,17 +84,17 @@ def solve_weighted(W, Y, names=None, units=None, row_weights=None) -> LSResult:
         w = np.asarray(row_weights, dtype=float)
         if w.shape != (r,):
             raise ValueError(f"row_weights: expected shape ({r},), got {w.shape}")
-        W, Y = W * w[:, None], Y * w
-    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(Y))):
+        Wm, Ym = Wm * w[:, None], Ym * w
+    if not (np.all(np.isfinite(Wm)) and np.all(np.isfinite(Ym))):
         raise ValueError("least squares: the observation matrix or the observations contain NaN or infinity")
     if r <= p:
         raise ValueError(f"least squares: {r} equations for {p} parameters; need more samples than parameters (r > p)")
-    norms = np.linalg.norm(W, axis=0)
+    norms = np.linalg.norm(Wm, axis=0)
     zero = [names[i] for i in np.nonzero(norms == 0)[0]]
     if zero:
         raise ValueError(f"least squares: parameters {', '.join(zero)} are not excited by the data "
                          f"(their columns of W are zero)")
-    Ws = W / norms
+    Ws = Wm / norms
     sv = np.linalg.svd(Ws, compute_uv=False)
     cond_scaled = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
     if not cond_scaled < 1e10:
@@ -98,14 +102,14 @@ def solve_weighted(W, Y, names=None, units=None, row_weights=None) -> LSResult:
         worst = np.argsort(-np.abs(vt[-1]))[:3]
         raise ValueError(f"least squares: the observation matrix is rank-deficient (scaled condition number "
                          f"{cond_scaled:.3g}); not separable: {', '.join(names[i] for i in worst)}")
-    v_s, *_ = np.linalg.lstsq(Ws, Y, rcond=None)
+    v_s, *_ = np.linalg.lstsq(Ws, Ym, rcond=None)
     value = v_s / norms
-    residual = Y - W @ value
+    residual = Ym - Wm @ value
     sigma_rho2 = float(residual @ residual) / (r - p)
     inv_s = np.linalg.inv(Ws.T @ Ws)
     cov = sigma_rho2 * inv_s / np.outer(norms, norms)
     sigma = np.sqrt(np.diag(cov))
     with np.errstate(divide="ignore"):
         rel = 100.0 * sigma / np.abs(value)
-    return LSResult(names, units, value, sigma, rel, cov, float(np.linalg.cond(W)), cond_scaled,
+    return LSResult(names, units, value, sigma, rel, cov, float(np.linalg.cond(Wm)), cond_scaled,
                     float(np.sqrt(sigma_rho2)), r, residual)

@@ -24,11 +24,12 @@ paper: the straight pose).  Errors are means of absolute values over samples, jo
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Sequence, cast
 
 import numpy as np
 
 from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular, static_elongation
-from neck_sim.params import NeckParams
+from neck_sim.params import NeckParams, Routing
 
 from identification import gaps as gaps_mod
 from identification import regressors as reg
@@ -37,11 +38,14 @@ from identification.least_squares import LSResult, solve_weighted
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
 from identification.uncertainty import N_BOOTSTRAP
 
+if TYPE_CHECKING:
+    from neck_sim.logs import Log
+
 __all__ = ["PAPER", "IdentificationSettings", "IdentificationResult", "identify", "identify_log",
            "reconstruct_elongation", "format_tables", "paper_comparable", "CABLE_MODELS"]
 
 #: The paper's published numbers (Tables 1, 2, §5.3-5.5), for side-by-side reports.
-PAPER = {
+PAPER: dict[str, Any] = {
     "table1": {
         "f_s_elastic": [14.42, 17.65, 18.77, 16.18], "f_s_elastic_rel": [1.68, 1.38, 1.32, 0.88],
         "f_s_friction": [14.13, 17.70, 18.97, 16.29], "f_s_friction_rel": [2.52, 2.02, 1.88, 1.25],
@@ -117,8 +121,7 @@ class IdentificationResult:
     @property
     def f_s(self) -> np.ndarray:
         """The friction the later models use: eqs (44)-(45)'s, else the friction-only model's."""
-        src = self.elastic or self.friction
-        return src.group("f_s")
+        return cast(LSResult, self.elastic or self.friction).group("f_s")     # identify fits one of them
 
     def to_dict(self) -> dict:
         """JSON-ready summary (no large arrays)."""
@@ -150,8 +153,8 @@ def _mean_abs(x) -> float:
     return float(np.mean(np.abs(x))) if x.size else float("nan")
 
 
-def reconstruct_elongation(force, theta_dot, params: NeckParams, *, k, lam, f_s, c_a: float,
-                           dt: float) -> np.ndarray:
+def reconstruct_elongation(force: np.ndarray, theta_dot: np.ndarray, params: NeckParams, *, k: np.ndarray,
+                           lam: np.ndarray, f_s: np.ndarray, c_a: float, dt: float) -> np.ndarray:
     """x_c (T, m) m by eq (58) over logged forces (T, m) and motor speeds, from the static start.
 
     Each step is ``controllers.estimators.ElongationEstimator.step``; the first sample is the
@@ -173,7 +176,7 @@ def _torque_errors(prep: Prepared, params: NeckParams, dyn: reg.Dynamics, f_s) -
     """Eqs (51)-(53) corrected: Gamma_m = Z f vs Z(a f_s + I_a (R/r_d)^2 x_c_ddot) + M alpha_ddot + c + g."""
     ia = params.actuation.reflected_inertia
     a = reg.slow_friction_basis(prep, params)
-    inertial = np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) + dyn.c + dyn.g
+    inertial = np.einsum("sij,sj->si", dyn.M, reg._need_camera(prep, "joint torques").alpha_ddot) + dyn.c + dyn.g
     x_dd = prep.x_c_ddot if prep.x_c_ddot is not None else np.zeros_like(prep.force)
     gamma_m = np.einsum("sij,sj->si", dyn.Z, prep.force)
     gamma_r = np.einsum("sij,sj->si", dyn.Z, ia * x_dd) + inertial
@@ -190,7 +193,9 @@ def _model_tension(prep: Prepared, params: NeckParams, k, lam, c_a) -> np.ndarra
 
 def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s, c_a: float, notes: list):
     """alpha_hat by eqs (33) and (35) for each cable model vs the camera; (errors, series)."""
-    fast = prep.fast
+    fast, camera, alpha_cam = prep.fast, prep.camera, prep.alpha
+    if fast is None or camera is None or alpha_cam is None:
+        raise ValueError("alpha_hat reconstruction: needs the control-rate signals and the camera frames")
     sel = (fast.t >= prep.t[0]) & (fast.t <= prep.t[-1])
     t, theta, theta_dot, force = fast.t[sel], fast.theta[sel], fast.theta_dot[sel], fast.force[sel]
     dt = float(np.median(np.diff(t)))
@@ -199,16 +204,17 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
         x[name] = reconstruct_elongation(force, theta_dot, params, k=k, lam=lam, f_s=f_s, c_a=c_a, dt=dt)
     names = list(x)
     xs = np.stack([x[n] for n in names])
-    tc, ac = prep.camera
+    tc, ac = camera
     in_win = (tc >= t[0]) & (tc <= t[-1])
     tc, ac = tc[in_win], ac[in_win]
-    errors, series = {"eq33": {}, "eq35": {}}, {"t_fast": t[::4], "camera_t": tc, "camera_alpha": ac}
+    errors: dict[str, dict[str, float]] = {"eq33": {}, "eq35": {}}
+    series = {"t_fast": t[::4], "camera_t": tc, "camera_alpha": ac}
 
     def at_camera(a):
         return np.stack([np.interp(tc, t, a[:, j]) for j in range(a.shape[1])], axis=1)
 
     tri = None
-    if not params.routing.is_paper_kind(params.n_joints):
+    if not cast(Routing, params.routing).is_paper_kind(params.n_joints):     # __post_init__ sets it
         notes.append("eq (33) reconstruction skipped: it needs the paper's routing (cable j ends at joint j, one "
                      "long left cable); this neck's routing differs")
     else:
@@ -216,7 +222,7 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
             tri = estimate_alpha_triangular(np.broadcast_to(theta, xs.shape), params, xs)
         except UnreachableError as exc:
             notes.append(f"eq (33) reconstruction failed: {exc}")
-    alpha0 = np.broadcast_to(prep.alpha[0], (len(names), prep.alpha.shape[1]))
+    alpha0 = np.broadcast_to(alpha_cam[0], (len(names), alpha_cam.shape[1]))
     pinv = estimate_alpha_pinv(np.broadcast_to(theta, xs.shape), params, xs, alpha0=alpha0)
     for i, n in enumerate(names):
         if tri is not None:
@@ -230,7 +236,7 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
 
 
 def identify(meas: Measurements | Prepared, params: NeckParams, settings: IdentificationSettings | None = None,
-             *, models=MODELS) -> IdentificationResult:
+             *, models: Sequence[str] = MODELS) -> IdentificationResult:
     """The paper's identification on measured data (see the module docstring).
 
     ``params`` supplies the nominal constants only (geometry, drive, inertia, springs, c_s, and
@@ -252,17 +258,17 @@ def identify(meas: Measurements | Prepared, params: NeckParams, settings: Identi
     notes: list[str] = []
     dyn = reg.joint_dynamics(prep, params)
     # friction alone is cheap and gives the slack mask its tension estimate (eq 41)
-    friction = solve_weighted(*reg.friction_model(prep, params, dyn))
-    taut = reg.taut_samples(prep, params, friction.group("f_s"), threshold=s.slack_threshold,
+    friction_fit = solve_weighted(*reg.friction_model(prep, params, dyn))
+    taut = reg.taut_samples(prep, params, friction_fit.group("f_s"), threshold=s.slack_threshold,
                             margin_s=s.slack_margin_s)
-    elastic = variable = None
+    elastic: LSResult | None = None
+    variable: LSResult | None = None
     if "elastic" in models:
         elastic = solve_weighted(*reg.elastic_model(prep, params, weight=s.weight, taut=taut, dyn=dyn))
-    f_s = (elastic or friction).group("f_s")
+    f_s = (elastic or friction_fit).group("f_s")
     if "variable" in models:
         variable = solve_weighted(*reg.variable_stiffness_model(prep, params, f_s, taut=taut))
-    if "friction" not in models:
-        friction = None
+    friction = friction_fit if "friction" in models else None
     notes += _unphysical_notes({"(44),(45)": elastic, "(46),(47)": friction, "Table 2": variable})
 
     torque_error, series = _torque_errors(prep, params, dyn, f_s)
@@ -308,7 +314,8 @@ def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: Identification
     models = tuple(m for m in ("elastic", "variable") if fits.get(m) is not None)
     reps = (unc.camera_noise_bootstrap(prep, params, taut, weight=s.weight, models=models, settings=s.preprocess,
                                        n=s.bootstrap, seed=s.seed) if s.bootstrap else {})
-    out, missing_by_model = {}, []
+    out: dict[str, unc.Uncertainty] = {}
+    missing_by_model: list[tuple[str, Sequence[str], np.ndarray, np.ndarray, np.ndarray]] = []
     for name in ("friction", "elastic", "variable"):
         res = fits.get(name)
         if res is None:
@@ -333,8 +340,8 @@ def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: Identification
         missing = gaps_mod.not_identified(u.value, u.sigma)
         out[name] = u.with_identified(~missing)
         missing_by_model.append((name, u.names, u.value, u.sigma, missing))
-    return out, gaps_mod.gap_lines(missing_by_model, tension=tension, x_c_dot=prep.x_c_dot, theta_dot=prep.theta_dot,
-                                   taut=taut)
+    return out, gaps_mod.gap_lines(missing_by_model, tension=tension, theta_dot=prep.theta_dot, taut=taut,
+                                   x_c_dot=reg._need_camera(prep, "parameters not identified").x_c_dot)
 
 
 def _unphysical_notes(results: dict) -> list[str]:
@@ -358,8 +365,8 @@ def _unphysical_notes(results: dict) -> list[str]:
     return notes
 
 
-def identify_log(log, settings: IdentificationSettings | None = None, *, params: NeckParams | None = None,
-                 models=MODELS) -> IdentificationResult:
+def identify_log(log: Log, settings: IdentificationSettings | None = None, *, params: NeckParams | None = None,
+                 models: Sequence[str] = MODELS) -> IdentificationResult:
     """:func:`identify` on a :class:`neck_sim.logs.Log` (measured topics and ``neck`` metadata only).
 
     ``params`` defaults to ``log.params`` (the nominal constants of the ``neck`` record).
@@ -374,7 +381,7 @@ def identify_log(log, settings: IdentificationSettings | None = None, *, params:
 
 def paper_comparable(params: NeckParams) -> bool:
     """True when the paper's Tables 1-2 describe the same cables: its 3-joint neck and routing."""
-    return params.n_joints == 3 and params.routing.is_paper_kind(3)
+    return params.n_joints == 3 and cast(Routing, params.routing).is_paper_kind(3)     # __post_init__ sets it
 
 
 def _cell(v, rel, ref_v, ref_rel, fmt):
@@ -410,7 +417,7 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None,
                "k1": (P1["k"], P1["k_rel"]), "c_a1": (P1["c_a"], P1["c_a_rel"]), "k2": (P2["k"], P2["k_rel"]),
                "lambda": (P2["lambda"], P2["lambda_rel"]), "c_a2": (P2["c_a"], P2["c_a_rel"])}
     else:
-        src = truth if truth is not None else p
+        src = truth if truth is not None else cast(NeckParams, p)       # not None: else paper is True
         ref_name = "plant" if truth is not None else (reference or "nominal")
         none = [None] * m
         ref = {"f_s_e": (src.friction.f_s, none), "f_s_f": (src.friction.f_s, none),
@@ -419,8 +426,8 @@ def format_tables(result: IdentificationResult, truth: NeckParams | None = None,
     lines = [f"Table 1: identified parameters -- ours (relative sigma) | {ref_name}"
              + (" (relative sigma)" if paper else " (our difference)")]
     if not paper:
-        lines.append(f"  {p.n_joints} joints, {m} cables in the routing's order; the paper's Tables 1-2 are for its "
-                     f"3-joint routing and are not compared")
+        lines.append(f"  {cast(NeckParams, p).n_joints} joints, {m} cables in the routing's order; the paper's "
+                     f"Tables 1-2 are for its 3-joint routing and are not compared")
     head = f"{'':8}"
     cols = []
     if result.elastic is not None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import os
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -15,13 +16,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from matplotlib.figure import Figure  # noqa: E402
+
 from neck_sim.atomic import atomic_write_bytes  # noqa: E402
+
+if TYPE_CHECKING:
+    from identification.paper import IdentificationResult
 
 __all__ = ["save_figure", "figure_torques", "figure_tensions", "figure_tension_error", "figure_alpha",
            "figure_simulator", "save_identification_figures"]
 
 
-def save_figure(fig, path) -> str:
+def save_figure(fig: Figure, path: str | os.PathLike[str]) -> str:
     """Write ``fig`` as PNG to ``path`` atomically and close it; returns the path."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
@@ -30,7 +36,7 @@ def save_figure(fig, path) -> str:
     return os.fspath(path)
 
 
-def figure_torques(result):
+def figure_torques(result: IdentificationResult) -> Figure:
     """Figure 4: Gamma_m = Z f, Gamma_rf (with friction) and Gamma_r (without), per joint."""
     s = result.series
     t = s["t"]
@@ -59,7 +65,7 @@ def _masked(x, mask):
     return np.where(mask, x, np.nan)
 
 
-def figure_tensions(result, model: str = "constant"):
+def figure_tensions(result: IdentificationResult, model: str = "constant") -> Figure:
     """Figures 5 (constant stiffness) and 7 (variable): tension from forces vs from the cable model."""
     s = result.series
     t, taut = s["t"], s["taut"]
@@ -79,7 +85,7 @@ def figure_tensions(result, model: str = "constant"):
     return fig
 
 
-def figure_tension_error(result):
+def figure_tension_error(result: IdentificationResult) -> Figure:
     """Figure 6: |tension from forces - from the cable model| against the tension from forces."""
     s = result.series
     taut = s["taut"]
@@ -100,7 +106,7 @@ def figure_tension_error(result):
     return fig
 
 
-def figure_alpha(result):
+def figure_alpha(result: IdentificationResult) -> Figure:
     """Figure 8: alpha_hat by eq (33) (left) and eq (35) (right) for the three cable models vs camera."""
     s = result.series
     colours = {"inextensible": "tab:green", "constant": "tab:blue", "variable": "tab:red"}
@@ -125,7 +131,7 @@ def figure_alpha(result):
     return fig
 
 
-def figure_simulator(runs: dict, measured_key: str = "measured"):
+def figure_simulator(runs: dict, measured_key: str = "measured") -> Figure:
     """Figure 9: applied forces of the measured run and of simulators, ``runs`` name -> (t, force)."""
     n1 = next(iter(runs.values()))[1].shape[1]
     fig, axes = plt.subplots(n1, 1, figsize=(10, 2.0 * n1), sharex=True)
@@ -144,7 +150,7 @@ def figure_simulator(runs: dict, measured_key: str = "measured"):
     return fig
 
 
-def save_identification_figures(result, directory) -> list[str]:
+def save_identification_figures(result: IdentificationResult, directory: str | os.PathLike[str]) -> list[str]:
     """Figures 4-8 as PNG files in ``directory`` (created); returns the paths written."""
     os.makedirs(directory, exist_ok=True)
     paths = [save_figure(figure_torques(result), os.path.join(directory, "fig4_torques.png"))]

@@ -42,13 +42,17 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 from scipy import signal
 
 from neck_sim.analytic import elongation
 from neck_sim.params import NeckParams
+
+if TYPE_CHECKING:
+    from neck_sim.logs import Log
 
 __all__ = ["Measurements", "PreprocessSettings", "CutoffChoice", "FastSignals", "Prepared",
            "residual_cutoff", "lowpass", "decimation_factor", "decimate", "SlowChain", "prepare"]
@@ -127,12 +131,14 @@ class Measurements:
         return self.t_camera is not None
 
     @classmethod
-    def from_log(cls, log) -> "Measurements":
+    def from_log(cls, log: Log) -> "Measurements":
         """The measured topics of a :class:`neck_sim.logs.Log` (never its simulation-truth topics)."""
-        cam = getattr(log, "camera", None)
-        has_cam = cam is not None and getattr(cam, "t", None) is not None
-        return cls(log.motors.t, log.motors.theta, log.motors.force,
-                   cam.t if has_cam else None, cam.alpha if has_cam else None)
+        motors, cam = log.motors, getattr(log, "camera", None)
+        if motors is None:
+            raise ValueError(f"{log.path}: no /neck/motors samples: identification needs the encoders and forces")
+        if cam is None or getattr(cam, "t", None) is None:
+            return cls(motors.t, motors.theta, motors.force, None, None)
+        return cls(motors.t, motors.theta, motors.force, cam.t, cam.alpha)
 
 
 @dataclass(frozen=True)
@@ -165,7 +171,7 @@ class CutoffChoice(NamedTuple):
     noise_rms: tuple = ()             # intercept a of the residual line, signal units
 
 
-def lowpass(x, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
+def lowpass(x: npt.ArrayLike, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
     """Zero-phase Butterworth low-pass (forward and reverse, ``sosfiltfilt``) along ``axis``."""
     nyq = 0.5 * fs
     if not 0 < cutoff_hz < nyq:
@@ -179,7 +185,7 @@ def _butter_sos(order: int, cutoff_hz: float, fs: float) -> np.ndarray:
     return signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
 
 
-def residual_cutoff(x, fs: float, *, order: int = 4, n_candidates: int = 120,
+def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates: int = 120,
                     fit_band: tuple[float, float] = (0.5, 0.95)) -> CutoffChoice:
     """Winter's residual analysis: the cutoff (Hz) of a zero-phase Butterworth for ``x`` (T, C).
 
@@ -245,7 +251,7 @@ def _antialias(q: int) -> signal.dlti:
     return signal.dlti(b * (a.sum() / b.sum()), a)
 
 
-def decimate(x, q: int, axis: int = 0) -> np.ndarray:
+def decimate(x: npt.ArrayLike, q: int, axis: int = 0) -> np.ndarray:
     """``scipy.signal.decimate`` by q in stages of at most 13, zero phase, unit DC gain.
 
     Output sample k is input sample k*q (the zero-phase filter does not shift the signal).
@@ -282,14 +288,14 @@ class SlowChain(NamedTuple):
     keep: np.ndarray
     order: int
 
-    def after_lowpass(self, v) -> np.ndarray:
+    def after_lowpass(self, v: npt.ArrayLike) -> np.ndarray:
         """The chain without its first low-pass (for signals already filtered and differentiated)."""
-        v = decimate(v, self.q)[: self.n_grid][self.idx]
+        slow = decimate(v, self.q)[: self.n_grid][self.idx]
         if self.common_hz is not None:
-            v = lowpass(v, self.motor_rate_hz / self.q, self.common_hz, self.order)
-        return v[self.keep]
+            slow = lowpass(slow, self.motor_rate_hz / self.q, self.common_hz, self.order)
+        return slow[self.keep]
 
-    def __call__(self, v) -> np.ndarray:
+    def __call__(self, v: npt.ArrayLike) -> np.ndarray:
         """A control-rate signal (T, ...) to the slow grid (S, ...), exactly as theta and f are."""
         return self.after_lowpass(lowpass(np.asarray(v, dtype=float), self.motor_rate_hz, self.motor_hz, self.order))
 
@@ -372,8 +378,8 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     t_grid = meas.t_motor[::q]
     cutoffs = {"motors": motor_cut}
     lo, hi = t_grid[0], t_grid[-1]
-    cam = None
-    if meas.has_camera:
+    cam: tuple[np.ndarray, np.ndarray] | None = None
+    if meas.t_camera is not None and meas.alpha_camera is not None:       # both or neither (Measurements)
         tc, ac = meas.t_camera, meas.alpha_camera
         lo, hi = max(lo, tc[0]), min(hi, tc[-1])
         if hi - lo < 4 * s.trim_s + 64 / rate:
@@ -390,7 +396,9 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     if np.count_nonzero(keep) < 32:
         raise ValueError(f"log: {t[-1] - t[0]:.2f} s of usable data is too short after trimming "
                          f"{s.trim_s} s at both ends")
-    alpha = alpha_dot = alpha_ddot = None
+    alpha: np.ndarray | None = None
+    alpha_dot: np.ndarray | None = None
+    alpha_ddot: np.ndarray | None = None
     common = motor_cut.hz
     if cam is not None:
         a_grid = np.stack([np.interp(t, cam[0], cam[1][:, j]) for j in range(n)], axis=1)
@@ -409,7 +417,9 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     slow = {"theta": chain.after_lowpass(theta_f), "theta_dot": chain.after_lowpass(theta_dot),
             "theta_ddot": chain.after_lowpass(theta_ddot), "force": chain(meas.force)}
     h = 1.0 / rate
-    x_c = x_c_dot = x_c_ddot = None
+    x_c: np.ndarray | None = None
+    x_c_dot: np.ndarray | None = None
+    x_c_ddot: np.ndarray | None = None
     if alpha is not None:
         if refilter and common < cutoffs["camera"].hz:
             alpha = lowpass(alpha, rate, common, order)

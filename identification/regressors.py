@@ -35,6 +35,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic import bias_forces, gravity_spring_torque, mass_matrix, motor_friction, transmission_matrix
 from neck_sim.params import NeckParams
@@ -77,21 +78,34 @@ def _names_units(symbols, n_cables):
     return names, units
 
 
-def _need_camera(prep: Prepared, model: str) -> None:
-    if not prep.has_camera:
+class _Camera(NamedTuple):
+    """The camera-derived signals of a :class:`Prepared` that has a camera, none of them None."""
+
+    alpha: np.ndarray
+    alpha_dot: np.ndarray
+    alpha_ddot: np.ndarray
+    x_c: np.ndarray
+    x_c_dot: np.ndarray
+    x_c_ddot: np.ndarray
+
+
+def _need_camera(prep: Prepared, model: str) -> _Camera:
+    a, ad, add, x, xd, xdd = prep.alpha, prep.alpha_dot, prep.alpha_ddot, prep.x_c, prep.x_c_dot, prep.x_c_ddot
+    if a is None or ad is None or add is None or x is None or xd is None or xdd is None:
         raise ValueError(f"{model}: needs the joint angles of the camera topic (/neck/camera) for eq (27)'s "
                          f"elongations and the joint accelerations; this log has no camera frames")
+    return _Camera(a, ad, add, x, xd, xdd)
 
 
 def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
     """Z, M, c, g (with the geared motors, eqs 24 and 26 corrected) at the camera's joint angles."""
-    _need_camera(prep, "joint dynamics")
-    a, ad = prep.alpha, prep.alpha_dot
+    cam = _need_camera(prep, "joint dynamics")
+    a, ad = cam.alpha, cam.alpha_dot
     return Dynamics(transmission_matrix(a, params), mass_matrix(a, params, motors=True),
                     bias_forces(a, ad, params, motors=True), gravity_spring_torque(a, params))
 
 
-def friction_basis(theta_dot, params: NeckParams) -> np.ndarray:
+def friction_basis(theta_dot: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """a = (2/pi) arctan(c_s theta_dot), the eq (37) friction per unit f_s, (..., m)."""
     th = np.asarray(theta_dot, dtype=float)
     return motor_friction(th, params, f_s=np.ones(th.shape[-1]))
@@ -109,22 +123,22 @@ def slow_friction_basis(prep: Prepared, params: NeckParams) -> np.ndarray:
     return prep.chain(friction_basis(prep.fast.theta_dot, params))
 
 
-def tension_from_forces(prep: Prepared, params: NeckParams, f_s) -> np.ndarray:
+def tension_from_forces(prep: Prepared, params: NeckParams, f_s: npt.ArrayLike) -> np.ndarray:
     """Cable tensions of eq (41)/(55): f - a f_s - (R/r_d) I_a theta_ddot, (S, m) N."""
     act = params.actuation
     return (prep.force - slow_friction_basis(prep, params) * np.asarray(f_s, dtype=float)
             - (act.R / act.r_d) * act.I_a * prep.theta_ddot)
 
 
-def taut_samples(prep: Prepared, params: NeckParams, f_s, *, threshold: float = 2.0,
+def taut_samples(prep: Prepared, params: NeckParams, f_s: npt.ArrayLike, *, threshold: float = 2.0,
                  margin_s: float = 0.1) -> np.ndarray:
     """Mask (S, m), True where cable i is taut at sample s (see the module docstring).
 
     ``threshold`` N on the eq (41) tension with friction ``f_s``; ``margin_s`` s added on both
     sides of every slack interval.  Needs the camera for the elongation test.
     """
-    _need_camera(prep, "slack detection")
-    slack = (tension_from_forces(prep, params, f_s) < threshold) | (prep.x_c <= 0)
+    cam = _need_camera(prep, "slack detection")
+    slack = (tension_from_forces(prep, params, f_s) < threshold) | (cam.x_c <= 0)
     pad = int(np.ceil(margin_s * prep.rate_hz))
     if pad > 0 and slack.any():
         kernel = np.ones(2 * pad + 1)
@@ -147,14 +161,15 @@ def _diag_rows(cols: list[np.ndarray], taut: np.ndarray | None) -> tuple[np.ndar
     return W[keep], keep
 
 
-def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool):
+def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool) -> tuple[np.ndarray, np.ndarray]:
     """(Z diag(a) (S*N, m), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
+    cam = _need_camera(prep, "joint torques")
     a = slow_friction_basis(prep, params)
     Za = dyn.Z * a[:, None, :]
     f = prep.force
     if elastic:
-        f = f - params.actuation.reflected_inertia * prep.x_c_ddot
-    y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, prep.alpha_ddot) - dyn.c - dyn.g)
+        f = f - params.actuation.reflected_inertia * cam.x_c_ddot
+    y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, cam.alpha_ddot) - dyn.c - dyn.g)
     return Za.reshape(-1, Za.shape[2]), y.reshape(-1)
 
 
@@ -167,17 +182,17 @@ def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | None = No
     return Regression(W, Y, names, units)
 
 
-def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, taut=None,
+def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, taut: np.ndarray | None = None,
                   dyn: Dynamics | None = None) -> Regression:
     """Friction, linear stiffness and damping (eqs 44-45 corrected), v = (k, c_a, f_s)."""
-    _need_camera(prep, "elastic model (eqs 44-45)")
+    cam = _need_camera(prep, "elastic model (eqs 44-45)")
     if not (np.isfinite(weight) and weight > 0):
         raise ValueError(f"weight: must be positive, got {weight!r}")
     dyn = dyn or joint_dynamics(prep, params)
     act = params.actuation
     C = params.n_cables
     a = slow_friction_basis(prep, params)
-    Wt, keep = _diag_rows([prep.x_c, prep.x_c_dot, a], taut)
+    Wt, keep = _diag_rows([cam.x_c, cam.x_c_dot, a], taut)
     Yt = (prep.force - (act.R / act.r_d) * act.I_a * prep.theta_ddot)[keep]
     Za, yq = _torque_rows(prep, params, dyn, elastic=True)
     Wq = np.concatenate([np.zeros((Za.shape[0], 2 * C)), weight * Za], axis=1)
@@ -185,10 +200,11 @@ def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, 
     return Regression(np.concatenate([Wt, Wq]), np.concatenate([Yt, weight * yq]), names, units)
 
 
-def variable_stiffness_model(prep: Prepared, params: NeckParams, f_s, *, taut=None) -> Regression:
+def variable_stiffness_model(prep: Prepared, params: NeckParams, f_s: npt.ArrayLike, *,
+                             taut: np.ndarray | None = None) -> Regression:
     """Tension-dependent stiffness with friction fixed (eqs 54-57), v = (k, lambda, c_a)."""
-    _need_camera(prep, "variable-stiffness model (eqs 54-57)")
+    cam = _need_camera(prep, "variable-stiffness model (eqs 54-57)")
     t = tension_from_forces(prep, params, f_s)
-    W, keep = _diag_rows([prep.x_c, prep.x_c * t, prep.x_c_dot], taut)
+    W, keep = _diag_rows([cam.x_c, cam.x_c * t, cam.x_c_dot], taut)
     names, units = _names_units(("k", "lambda", "c_a"), params.n_cables)
     return Regression(W, t[keep], names, units)

@@ -23,13 +23,19 @@ floor).  Only measured topics of the log are read: motors, camera and the refere
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
+import numpy.typing as npt
 
 from scipy.interpolate import CubicSpline
 
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import Trajectory, TrajectorySample
+
+if TYPE_CHECKING:
+    from identification.paper import IdentificationResult
+    from neck_sim.logs import Log
 
 __all__ = ["SampledTrajectory", "identified_params", "SimulatorComparison", "compare_simulators"]
 
@@ -39,6 +45,9 @@ class SampledTrajectory(Trajectory):
     """A reference given by samples (``times`` from 0, ``poses`` (T, N)), e.g. the log's
     /neck/reference, interpolated by a cubic spline for the velocities and accelerations."""
 
+    if TYPE_CHECKING:       # an instance attribute set in __post_init__; ClassVar keeps it out of the fields
+        _spline: ClassVar[CubicSpline]
+
     def __post_init__(self):
         super().__post_init__()
         if self.times.size < 4:
@@ -46,17 +55,18 @@ class SampledTrajectory(Trajectory):
         object.__setattr__(self, "_spline", CubicSpline(self.times, self.poses, axis=0))
 
     @classmethod
-    def from_samples(cls, t, alpha_d, name: str = "logged reference") -> "SampledTrajectory":
+    def from_samples(cls, t: npt.ArrayLike, alpha_d: npt.ArrayLike,
+                     name: str = "logged reference") -> "SampledTrajectory":
         """From logged times (any start) and desired angles (T, N); time is shifted to start at 0."""
         t = np.asarray(t, dtype=float)
-        return cls(t - t[0], alpha_d, name)
+        return cls(t - t[0], np.asarray(alpha_d, dtype=float), name)
 
-    def sample(self, t) -> TrajectorySample:
+    def sample(self, t: npt.ArrayLike) -> TrajectorySample:
         tc = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
         return TrajectorySample(self._spline(tc), self._spline(tc, 1), self._spline(tc, 2))
 
 
-def identified_params(nominal: NeckParams, result, damping: float = 20.0) -> NeckParams:
+def identified_params(nominal: NeckParams, result: IdentificationResult, damping: float = 20.0) -> NeckParams:
     """``nominal`` with the identified friction and variable-stiffness cables (negative values -> 0)
     and the cable damping ``damping`` N s/m (see the module docstring)."""
     var = result.variable
@@ -96,8 +106,8 @@ class SimulatorComparison:
         return {"simulators": clean, "measured_mean_force": self.measured_mean_force}
 
 
-def compare_simulators(log, result, *, law: int = 1, trajectory=None, seed: int = 0, damping: float = 20.0,
-                       progress: bool = True) -> SimulatorComparison:
+def compare_simulators(log: Log, result: IdentificationResult, *, law: int = 1, trajectory: Trajectory | None = None,
+                       seed: int = 0, damping: float = 20.0, progress: bool = True) -> SimulatorComparison:
     """Replay the log's reference on the two simulators of §5.6 and compare with the log.
 
     ``log``: :class:`neck_sim.logs.Log` of the measured run (motors, camera, reference, read from
@@ -112,6 +122,8 @@ def compare_simulators(log, result, *, law: int = 1, trajectory=None, seed: int 
 
     if log.camera is None:
         raise ValueError("simulator comparison: the log has no /neck/camera frames to compare joint angles with")
+    if log.motors is None:
+        raise ValueError("simulator comparison: the log has no /neck/motors samples to compare forces with")
     if trajectory is None:
         if log.reference is None:
             raise ValueError("simulator comparison: the log has no /neck/reference topic; pass the trajectory")

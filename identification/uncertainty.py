@@ -30,12 +30,15 @@ elastic model's f_s, a model-form term: see ``identification.paper.calibrated_un
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Collection
 
 import numpy as np
+import numpy.typing as npt
 
 from identification import regressors as reg
 from identification.least_squares import LSResult
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
+from neck_sim.params import NeckParams
 
 __all__ = ["Uncertainty", "row_samples", "andrews_bandwidth", "hac_covariance", "camera_noise_bootstrap",
            "calibrate", "format_uncertainty", "refit", "N_BOOTSTRAP"]
@@ -77,12 +80,12 @@ class Uncertainty:
             raise KeyError(f"{symbol!r}: no such parameter group (parameters: {', '.join(self.names)})")
         return np.asarray(getattr(self, attr))[idx]
 
-    def with_identified(self, identified) -> "Uncertainty":
+    def with_identified(self, identified: npt.ArrayLike) -> "Uncertainty":
         kw = {k: getattr(self, k) for k in self.__dataclass_fields__}
         kw["identified"] = np.asarray(identified, bool)
         return Uncertainty(**kw)
 
-    def with_model_term(self, term) -> "Uncertainty":
+    def with_model_term(self, term: npt.ArrayLike) -> "Uncertainty":
         """``term`` (p,) in the parameters' units added in quadrature to ``sigma``: a bias of the
         model's form that neither the residuals (HAC) nor the camera noise (bootstrap) show."""
         kw = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -103,7 +106,8 @@ class Uncertainty:
                 "bootstrap_replicates": self.n_bootstrap, "camera_noise_rad": self.camera_noise}
 
 
-def row_samples(n_samples: int, n_joints: int, taut=None, *, torque: bool = True, tension: bool = True) -> np.ndarray:
+def row_samples(n_samples: int, n_joints: int, taut: np.ndarray | None = None, *, torque: bool = True,
+                tension: bool = True) -> np.ndarray:
     """Slow-grid sample index of every row of a ``regressors`` model, in its row order.
 
     Tension rows (``tension``) come first, one per taut (sample, cable) in sample-major order
@@ -126,7 +130,7 @@ def _scores(W, residual, rows, n_samples) -> np.ndarray:
     return g
 
 
-def andrews_bandwidth(scores) -> int:
+def andrews_bandwidth(scores: np.ndarray) -> int:
     """Bartlett-kernel bandwidth by Andrews' (1991) AR(1) plug-in rule for scores (S, p).
 
     L = 1.1447 (a1 S)^(1/3), a1 = sum 4 rho^2 s^4 / ((1 - rho)^6 (1 + rho)^2) / sum s^4 / (1 - rho)^4
@@ -146,7 +150,8 @@ def andrews_bandwidth(scores) -> int:
     return int(min(max(np.ceil(1.1447 * (a1 * S) ** (1 / 3)), 1), S // 3))
 
 
-def hac_covariance(W, residual, rows, n_samples: int, bandwidth: int | None = None) -> tuple[np.ndarray, int]:
+def hac_covariance(W: np.ndarray, residual: np.ndarray, rows: np.ndarray, n_samples: int,
+                   bandwidth: int | None = None) -> tuple[np.ndarray, int]:
     """Newey-West covariance of the least-squares estimate of W v = Y, and the bandwidth used.
 
     W (r, p) and residual (r,) as solved (weights applied), ``rows`` (r,) each row's sample index
@@ -177,7 +182,8 @@ def _lstsq(W, Y) -> np.ndarray:
     return np.linalg.solve(Ws.T @ Ws, Ws.T @ Y) / norms
 
 
-def refit(prep: Prepared, params, taut, *, weight: float, models) -> dict:
+def refit(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight: float,
+          models: Collection[str]) -> dict:
     """Values (p,) per model of :func:`identification.paper.identify`'s chain on ``prep``.
 
     Friction alone, then friction + elastic with ``taut`` fixed, then the variable-stiffness model
@@ -195,7 +201,8 @@ def refit(prep: Prepared, params, taut, *, weight: float, models) -> dict:
     return out
 
 
-def camera_noise_bootstrap(prep: Prepared, params, taut, *, weight: float, models, settings: PreprocessSettings,
+def camera_noise_bootstrap(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight: float,
+                           models: Collection[str], settings: PreprocessSettings,
                            n: int = N_BOOTSTRAP, seed: int = 0) -> dict:
     """Replicate values (n, p) per model, re-identified with fresh camera noise (module docstring).
 
@@ -203,10 +210,11 @@ def camera_noise_bootstrap(prep: Prepared, params, taut, *, weight: float, model
     plus N(0, ``params.sensors.camera_noise``) per frame and joint; the motors' cutoff as chosen on
     the log, the camera's chosen again by ``settings`` (residual analysis unless given).
     """
-    if prep.camera is None or prep.fast is None:
+    if prep.camera is None or prep.fast is None or prep.alpha is None:
         raise ValueError("camera noise bootstrap: needs the raw camera frames and control-rate signals")
     tc, _ = prep.camera
-    clean = np.stack([np.interp(tc, prep.t, prep.alpha[:, j]) for j in range(prep.alpha.shape[1])], axis=1)
+    alpha = prep.alpha
+    clean = np.stack([np.interp(tc, prep.t, alpha[:, j]) for j in range(alpha.shape[1])], axis=1)
     # the motors' cutoff is fixed (their signals are the log's own); the camera's is chosen again
     # on every replicate when the log's was (its choice moves with the noise, and so does f_s)
     fixed = PreprocessSettings(filter_order=settings.filter_order, motor_cutoff_hz=prep.cutoffs["motors"].hz,
@@ -227,7 +235,8 @@ def camera_noise_bootstrap(prep: Prepared, params, taut, *, weight: float, model
     return {k: np.asarray(v) for k, v in reps.items()}
 
 
-def calibrate(ls: LSResult, W, rows, n_samples: int, replicates=None, *, camera_noise: float) -> Uncertainty:
+def calibrate(ls: LSResult, W: np.ndarray, rows: np.ndarray, n_samples: int, replicates: np.ndarray | None = None,
+              *, camera_noise: float) -> Uncertainty:
     """:class:`Uncertainty` of one model: eq (50), HAC and (when given) the bootstrap replicates.
 
     ``W`` (r, p) the solved (weighted) observation matrix of ``ls``, ``rows`` its rows' sample

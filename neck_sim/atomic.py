@@ -155,9 +155,9 @@ def _process_gone(pid: int) -> bool:
 
 def remove_stale_temp_files(directory: str | os.PathLike) -> list[str]:
     """Delete the temporary files of killed neck-sim runs of this host in ``directory``; returns them."""
-    removed = []
+    removed: list[str] = []
     try:
-        entries = list(os.scandir(directory))
+        entries = list(os.scandir(os.fspath(directory)))
     except OSError:
         return removed
     for entry in entries:
@@ -257,7 +257,7 @@ def jsonable(x: Any) -> Any:
     return x
 
 
-def atomic_write_json(path: str | os.PathLike, obj: Any, *, indent: int = 2, **dumps_kwargs) -> None:
+def atomic_write_json(path: str | os.PathLike, obj: Any, *, indent: int = 2, **dumps_kwargs: Any) -> None:
     """Write ``obj`` (through :func:`jsonable`) as strict JSON with a final newline, atomically."""
     text = json.dumps(jsonable(obj), indent=indent, allow_nan=False, **dumps_kwargs)
     atomic_write_bytes(path, (text + "\n").encode())

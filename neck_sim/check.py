@@ -125,6 +125,8 @@ def check_log(log: Log | str) -> CheckResult:
         raise ValueError(f"{log.path}: no /neck/truth samples: check needs a simulated log")
     params, effects, rigid, source = _model(log)
     tr, mo = log.truth, log.motors
+    if mo is None:
+        raise ValueError(f"{log.path}: no /neck/motors samples: check needs the motor angles")
     common, it, im = np.intersect1d(np.round(tr.t * 1e9).astype(np.int64), np.round(mo.t * 1e9).astype(np.int64),
                                     return_indices=True)
     if len(common) < 3:

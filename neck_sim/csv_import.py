@@ -51,7 +51,8 @@ def csv_columns(kind: str, n_joints: int, n_cables: int) -> list[str]:
     return ["t"] + [f"{prefix}{i}" for i in range(1, n_joints + 1)]
 
 
-def read_csv_table(path, columns: list[str], why: str = "") -> tuple[dict[str, np.ndarray], list[str]]:
+def read_csv_table(path: str | os.PathLike[str], columns: list[str],
+                   why: str = "") -> tuple[dict[str, np.ndarray], list[str]]:
     """Read the named columns of a CSV file as float arrays; returns (columns, ignored names).
 
     ``why`` (e.g. "the routing's 4 cables") is named with the needed columns when some are missing.
@@ -113,11 +114,11 @@ def read_csv_table(path, columns: list[str], why: str = "") -> tuple[dict[str, n
 def _refuse_extra_channels(path, kind: str, ignored: list[str], columns: list[str], why: str) -> None:
     """Refuse channel columns beyond the routing's (``theta5`` for 4 cables, ``alpha11`` for 10
     joints): a file for another neck, not an extra column to ignore."""
-    prefixes = sorted({re.match(r"[a-z_]+", c).group() for c in columns[1:]}, key=len, reverse=True)
+    prefixes = sorted({m.group() for c in columns[1:] if (m := re.match(r"[a-z_]+", c))}, key=len, reverse=True)
     extra = [c for c in ignored if any(re.fullmatch(rf"{p}\d+", c.lower()) for p in prefixes)]
     if extra:
         width = len(columns) - 1 if kind != "motors" else (len(columns) - 1) // 2
-        found = max(int(re.search(r"\d+$", c).group()) for c in extra)
+        found = max(int(m.group()) for c in extra if (m := re.search(r"\d+$", c)))
         raise ValueError(f"{os.fspath(path)}: column(s) {', '.join(extra)} beyond {why}: expected {width} per "
                          f"channel ({', '.join(columns[1:])}), found {found}; is "
                          f"--params the neck these data come from?")
@@ -134,7 +135,9 @@ class ImportResult:
     ignored_columns: dict[str, list[str]]
 
 
-def import_csv(motors, output, *, camera=None, reference=None, estimate=None, params: NeckParams | None = None,
+def import_csv(motors: str | os.PathLike[str], output: str | os.PathLike[str], *,
+               camera: str | os.PathLike[str] | None = None, reference: str | os.PathLike[str] | None = None,
+               estimate: str | os.PathLike[str] | None = None, params: NeckParams | None = None,
                shift_time: bool = False, run_info: dict | None = None,
                accept_out_of_range_forces: bool = False) -> ImportResult:
     """Write a contract log at ``output`` from prototype CSV files (columns: module docstring).
@@ -166,6 +169,7 @@ def import_csv(motors, output, *, camera=None, reference=None, estimate=None, pa
     events = []
     for kind, tab in tables.items():
         cols = csv_columns(kind, n, m)[1:]
+        arrays: tuple[np.ndarray, ...]
         if kind == "motors":
             arrays = (np.stack([tab[c] for c in cols[:m]], 1), np.stack([tab[c] for c in cols[m:]], 1))
         else:

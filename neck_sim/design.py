@@ -1,4 +1,4 @@
-"""Comparing cable routings for one neck (issue 15, item 4; ``neck-sim design``).
+"""Comparing cable routings for one neck (``neck-sim design``).
 
 For each candidate routing of the same neck (geometry, springs, masses):
 

@@ -205,7 +205,8 @@ def _markdown(results, samples: int, seed: int, source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(results: list[StrategyResult], out_dir, *, samples: int, seed: int, source: str) -> None:
+def write_report(results: list[StrategyResult], out_dir: str | os.PathLike[str], *, samples: int, seed: int,
+                 source: str) -> None:
     """DIR/report.md, DIR/results.json and the figures, each written atomically."""
     os.makedirs(out_dir, exist_ok=True)
     for fig, path in ((_workspace_figure, "workspace.png"), (_joint_map_figure, "joint_maps.png"),

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Iterable
 
 from neck_sim import effects as E
 from neck_sim.params import NeckParams
@@ -23,7 +24,7 @@ from neck_sim.params import NeckParams
 __all__ = ["value_field", "parse_effect", "parse_effects"]
 
 
-def value_field(cls) -> str:
+def value_field(cls: type[E.Effect]) -> str:
     """The parameter ``VALUE`` sets for effect class ``cls``."""
     if cls.magnitude_field:
         return cls.magnitude_field
@@ -47,7 +48,7 @@ def parse_effect(text: str, params: NeckParams) -> E.Effect:
         raise ValueError(f"{where}: VALUE {value_text!r} is not a number") from None
     if not math.isfinite(value):
         raise ValueError(f"{where}: VALUE must be finite, got {value_text}")
-    kwargs = {value_field(cls): value}
+    kwargs: dict[str, object] = {value_field(cls): value}
     if at:
         have = {f.name for f in dataclasses.fields(cls)}
         kind = "cables" if "cables" in have else "joints" if "joints" in have else None
@@ -70,7 +71,7 @@ def parse_effect(text: str, params: NeckParams) -> E.Effect:
     return effect
 
 
-def parse_effects(texts, params: NeckParams) -> E.Effects:
+def parse_effects(texts: Iterable[str], params: NeckParams) -> E.Effects:
     """Every ``--effect`` as the plant's :class:`neck_sim.effects.Effects`; an effect given twice is
     refused, and so is a combination the neck's constants cannot take."""
     effects = [parse_effect(t, params) for t in texts or ()]

@@ -28,6 +28,7 @@ import threading
 import time
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.params import NeckParams
 
@@ -70,7 +71,7 @@ class LiveView:
     """
 
     def __init__(self, params: NeckParams, *, port: int = DEFAULT_PORT, pace: str = "realtime",
-                 rate_hz: float = 30.0, host: str = "127.0.0.1"):
+                 rate_hz: float = 30.0, host: str = "127.0.0.1") -> None:
         if pace not in PACES:
             raise ValueError(f"pace: expected one of {', '.join(PACES)}, got {pace!r}")
         if not (isinstance(port, int) and 0 <= port <= 65535):
@@ -91,6 +92,7 @@ class LiveView:
         self._viz_period = 1.0 / rate_hz
         self._subscribed = threading.Event()
         self._context = foxglove.Context()
+        self._server: foxglove.WebSocketServer | None
         try:
             self._server = foxglove.start_server(name="neck-sim", host=host, port=port, context=self._context,
                                                  server_listener=_listener(self._subscribed),
@@ -112,7 +114,7 @@ class LiveView:
         self._ns0 = 0                          # log time (ns) of simulated time t0
         self._last_ns = 0
         self._viz_next = {source: -np.inf for source in _SOURCES}
-        self._token = None
+        self._token: contextvars.Token | None = None
 
     # -- the view's life --------------------------------------------------------------------
     def __enter__(self) -> "LiveView":
@@ -142,22 +144,23 @@ class LiveView:
         self._viz_next = {source: -np.inf for source in self._viz_next}
 
     # -- the LogWriter interface --------------------------------------------------------------
-    def motors(self, t: float, theta, force) -> None:
+    def motors(self, t: float, theta: np.ndarray, force: np.ndarray) -> None:
         self.write_batch("motors", [t], [theta], [force])
 
-    def reference(self, t: float, alpha_d) -> None:
+    def reference(self, t: float, alpha_d: np.ndarray) -> None:
         self.write_batch("reference", [t], [alpha_d])
 
-    def estimate(self, t: float, alpha_hat) -> None:
+    def estimate(self, t: float, alpha_hat: np.ndarray) -> None:
         self.write_batch("estimate", [t], [alpha_hat])
 
-    def truth(self, t: float, alpha, alpha_dot, tension, elongation) -> None:
+    def truth(self, t: float, alpha: np.ndarray, alpha_dot: np.ndarray, tension: np.ndarray,
+              elongation: np.ndarray) -> None:
         self.write_batch("truth", [t], [alpha], [alpha_dot], [tension], [elongation])
 
-    def camera(self, t: float, alpha) -> None:
+    def camera(self, t: float, alpha: np.ndarray) -> None:
         self.write_batch("camera", [t], [alpha])
 
-    def write_batch(self, name: str, t, *fields) -> None:
+    def write_batch(self, name: str, t: npt.ArrayLike, *fields: npt.ArrayLike) -> None:
         """Samples of contract topic ``name``: times ``t`` (T,) s, then its fields (T, n) in
         contract order (as :meth:`neck_sim.logs.LogWriter.write_batch`); realtime pacing first
         waits until the wall clock reaches the last of them."""
@@ -188,7 +191,7 @@ class LiveView:
         return ns
 
     def _pace(self, t_last: float) -> None:
-        if self.pace == "realtime":
+        if self.pace == "realtime" and self._wall0 is not None:     # set by the first sample's _log_ns
             delay = self._wall0 + (t_last - self._t0) - time.monotonic()
             if delay > 0:
                 time.sleep(delay)

@@ -27,12 +27,17 @@ import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
-from typing import NamedTuple, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence, cast
 
 import numpy as np
 
 from neck_sim.atomic import atomic_write_bytes
 from neck_sim.params import NeckParams, default_params
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from neck_sim.params import Routing
 
 __all__ = ["RenderError", "Framing", "cable_colours", "figure10_poses", "posed_data", "framing", "render_poses",
            "compose_figure", "render_figure10", "BACKENDS", "FIGURE10_TIMES"]
@@ -103,12 +108,14 @@ def _render_xml(xml: str) -> str:
     rgb = " ".join(str(c) for c in _BACKGROUND)
     ET.SubElement(asset, "texture", type="skybox", builtin="flat", rgb1=rgb, rgb2=rgb, width="16", height="16")
     world = root.find("worldbody")
+    if world is None:
+        raise RenderError("render model: the plant's MJCF has no worldbody")
     ET.SubElement(world, "camera", name="neck_sim_figure", pos="0 0 1", xyaxes="1 0 0 0 1 0",
                   projection="orthographic", fovy="0.3")
     return ET.tostring(root, encoding="unicode")
 
 
-def posed_data(alphas: Sequence, params: NeckParams | None = None):
+def posed_data(alphas: Sequence, params: NeckParams | None = None) -> tuple[mujoco.MjModel, list[mujoco.MjData]]:
     """(model, [data per pose]) of the neck at each pose of ``alphas`` (K, N) rad, for rendering.
 
     Each pose is put by :meth:`Plant.reset` (the plant's own placement) and copied into a model
@@ -135,7 +142,7 @@ def posed_data(alphas: Sequence, params: NeckParams | None = None):
     return model, out
 
 
-def cable_colours(sides) -> list[tuple[float, float, float]]:
+def cable_colours(sides: Sequence[str]) -> list[tuple[float, ...]]:
     """One RGB colour per cable, all different, for the cables' ``sides`` ("left"/"right", in
     motor order): the paper's colours first (right cables blue, yellow, red, the first left cable
     green), then the rest of ``_RIGHT_CABLES`` and matplotlib's tab20b and tab20c maps (43 more:
@@ -159,7 +166,7 @@ def _restyle(model, params: NeckParams) -> None:
     import mujoco
     T, G = mujoco.mjtObj.mjOBJ_TENDON, mujoco.mjtObj.mjOBJ_GEOM
     n = params.n_joints
-    for j, rgb in enumerate(cable_colours(params.routing.sides), start=1):
+    for j, rgb in enumerate(cable_colours(cast("Routing", params.routing).sides), start=1):   # set in __post_init__
         t = mujoco.mj_name2id(model, T, f"c{j}")
         model.tendon_rgba[t] = (*rgb, 1.0)
         model.tendon_width[t] = _CABLE_WIDTH
@@ -175,7 +182,7 @@ def _restyle(model, params: NeckParams) -> None:
     model.geom_size[g, 0] *= _BAR_SCALE
 
 
-def framing(model, datas, margin: float = _MARGIN) -> Framing:
+def framing(model: mujoco.MjModel, datas: Sequence[mujoco.MjData], margin: float = _MARGIN) -> Framing:
     """One view that holds every pose: the bars, pulleys and cable sites (motors excluded)."""
     import mujoco
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, i) or "" for i in range(model.nsite)]
@@ -243,7 +250,7 @@ def render_poses(alphas: Sequence, params: NeckParams | None = None, *, width: i
     return images, view
 
 
-def compose_figure(images: Sequence[np.ndarray], titles: Sequence[str], path, *, view: Framing,
+def compose_figure(images: Sequence[np.ndarray], titles: Sequence[str], path: str | os.PathLike[str], *, view: Framing,
                    suptitle: str | None = None, legend: Sequence[tuple[str, tuple]] = (), dpi: int = 100) -> None:
     """Panels side by side with titles, a 5 cm scale bar and a legend, written atomically as PNG.
 
@@ -302,7 +309,7 @@ def _fmt_pose(alpha: np.ndarray) -> str:
 def _legend(model, params: NeckParams) -> list[tuple[str, tuple]]:
     import mujoco
     out = []
-    for j, side in enumerate(params.routing.sides, start=1):
+    for j, side in enumerate(cast("Routing", params.routing).sides, start=1):        # set in __post_init__
         t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"c{j}")
         out.append((f"cable {j} ({side})", tuple(model.tendon_rgba[t][:3])))
     t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, "j1_spring_left")
@@ -363,8 +370,9 @@ def _missing_library(backend: str) -> str | None:
     return None
 
 
-def render_figure10(path, params: NeckParams | None = None, *, width: int = 2000, backend: str | None = "auto",
-                    panels_dir=None, timeout: float = 300.0) -> RenderResult:
+def render_figure10(path: str | os.PathLike[str], params: NeckParams | None = None, *, width: int = 2000,
+                    backend: str | None = "auto",
+                    panels_dir: str | os.PathLike[str] | None = None, timeout: float = 300.0) -> RenderResult:
     """Write the Fig. 10 picture (four poses side by side, ``width`` px in all) to ``path`` (PNG).
 
     ``panels_dir``: also write each rendered panel (no text) as ``panel{k}.png`` there.

@@ -1,4 +1,5 @@
-"""Issue 3 item 4: the MuJoCo model agrees with the analytic model (thresholds of the issue)."""
+"""The MuJoCo model agrees with the analytic model: cable lengths to 1e-9 m, Z, M and g to 1e-6
+relative (the thresholds ``neck-sim crossval`` holds the model to)."""
 
 import json
 import math
@@ -26,7 +27,7 @@ def test_mujoco_agrees_with_the_analytic_model(n):
 
 @pytest.mark.parametrize("name", [k for k in EXAMPLES if k != "paper"])
 def test_mujoco_agrees_for_every_example_routing(name):
-    """The builder and the analytic model read the same routing (issue 15 item 2): every segment
+    """The builder and the analytic model read the same routing: every segment
     kind and its mirror, helpers on both sides, m != N + 1 -- to the paper neck's thresholds."""
     p = example_params(name)
     rep = CV.crossval(p, samples=25, seed=7)

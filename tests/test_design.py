@@ -12,7 +12,7 @@ from neck_sim.cli import main
 from neck_sim.params import default_params
 
 ROUTING = hasattr(neck_sim.params, "Routing")
-needs_routing = pytest.mark.skipif(not ROUTING, reason="routing as data (issue 15 items 1-2) not merged yet")
+needs_routing = pytest.mark.skipif(not ROUTING, reason="routing as data not merged yet")
 
 
 def test_inverse_statics_reaches_a_pose_of_a_fully_actuated_neck():

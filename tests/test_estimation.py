@@ -55,7 +55,7 @@ def test_estimators_reject_bad_shapes(params):
         an.estimate_alpha_pinv(np.zeros(4), params)
 
 
-# -- issue 14 item 3: motor angles no pose reaches, poses outside the joint range -------------------
+# -- motor angles no pose reaches, poses outside the joint range -------------------
 
 from scipy.optimize import least_squares  # noqa: E402
 

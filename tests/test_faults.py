@@ -1,4 +1,4 @@
-"""Fault injection (issue 14, item 9): hypothesis corrupts MCAP logs, CSV files and parameter
+"""Fault injection: hypothesis corrupts MCAP logs, CSV files and parameter
 files, and runs the command line in-process on them.  One property for every case:
 
 * exit status 2 and one line naming the file (and, for a corrupted topic, the topic), or

@@ -69,7 +69,7 @@ def test_tf_and_scene_validate_against_foxglove_schemas(tmp_path, n_joints, seed
 
 
 def test_the_published_schemas_catch_what_was_missing():
-    """The validator is not vacuous: the fields issue 14 found missing each make a message invalid."""
+    """The validator is not vacuous: the fields an earlier writer left out each make a message invalid."""
     from neck_sim.logs.foxglove import scene_update
 
     validator = _validator("foxglove.SceneUpdate")

@@ -1,5 +1,5 @@
 """End to end: a closed-loop run of the default MuJoCo plant, logged, identified from its measured
-topics only; the plant's true values (design notes) must come back (issue 6, item 4).
+topics only; the plant's true values (design notes) must come back.
 
 One run is made per module (about 50 s of simulated time): three of the optimised excitation
 sequences (``identification.excitation``), 2.5 s moves as in the paper, 0.3 s holds.  Measured

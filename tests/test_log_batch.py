@@ -1,4 +1,4 @@
-"""Bulk MCAP encoding (issue 13 item 2): ``LogWriter.write_batch`` and the per-sample methods give
+"""Bulk MCAP encoding: ``LogWriter.write_batch`` and the per-sample methods give
 the same messages, read back exactly by our reader and by the mcap library's own reader, with the
 bulk chunk path and with the library's add_message fallback."""
 

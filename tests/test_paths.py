@@ -1,4 +1,4 @@
-"""Issue 14, input/output side: no command writes over an input or fails after the work on an
+"""Input and output paths: no command writes over an input or fails after the work on an
 output path it could have checked first; user errors are one line with exit status 2; measured
 data are checked against the ``neck`` record (units); Ctrl-C, SIGTERM and internal errors end in
 one line with the temporary files gone.  Every command runs in-process through ``main``."""

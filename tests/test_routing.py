@@ -188,7 +188,7 @@ def test_plant_with_fewer_cables_than_joints_measures_the_analytic_elongation():
 
 def test_plant_with_as_many_cables_as_joints_follows_the_analytic_dynamics():
     """Every segment kind on a 4-joint, 4-cable neck: the plant's free response against eqs 29-30
-    (LSODA) -- the plant's dynamics check, at half its timestep (first-order convergence)."""
+    (LSODA) -- the check of ``neck_sim.crossval.dynamics_check``, at half its timestep (first-order convergence)."""
     from neck_sim.crossval import dynamics_check
 
     rep = dynamics_check(P.example_params("mixed4"), timestep=2.5e-4, hold_duration=0.1, free_duration=0.1)

@@ -31,7 +31,7 @@ def _waypoints(p):
 def _plant(p):
     try:
         return Plant(p)
-    except (IndexError, ValueError) as exc:       # the MJCF builder for any routing is issue 15 item 2
+    except (IndexError, ValueError) as exc:       # before the MJCF builder took any routing
         pytest.skip(f"the plant cannot be built for {p.n_cables} cables on {p.n_joints} joints yet: {exc!r}")
 
 

@@ -25,9 +25,10 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.geometry import (_joint_local, _psi_derivatives, _side_terms, check_alpha, check_pose,
                                         side_terms_kernel)
@@ -35,6 +36,9 @@ from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 from neck_sim.routing import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
                               SEG_RIGHT_SIDE, SEG_RIGHT_STRUT)
+
+if TYPE_CHECKING:
+    from neck_sim.params import Routing
 
 __all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
            "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]
@@ -65,7 +69,7 @@ if (SEG_LEFT_END, SEG_RIGHT_END, SEG_LEFT_SIDE, SEG_RIGHT_STRUT, SEG_RIGHT_SIDE,
 
 
 @kernel
-def transmission_kernel(alpha, geometry, cases, Z) -> None:
+def transmission_kernel(alpha: np.ndarray, geometry: np.ndarray, cases: np.ndarray, Z: np.ndarray) -> None:
     """Z (N, m) of one pose alpha (N,) into ``Z``: geometry = (b, L, r) m, cases (m, N) the
     routing's ``segment_cases``; the same slopes and gather as :func:`transmission_matrix`."""
     b, L, r = geometry[0], geometry[1], geometry[2]
@@ -117,10 +121,10 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, None, lambda: ddl_r)
     # Case (d), eq (6): psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant
     # length L.  Its mirror d'(alpha) = d(-alpha), with psi(-alpha) = atan2(l_r c, l_r s - b).
-    ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else None
+    ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else 0.0     # read only for order 2
     put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha), None, lambda: 2 * r * ddpsi)
     if left_strut:
-        ddpsi_m = _psi_derivatives(_joint_local(-alpha, b, L), b, L)[1] if 2 in want else None
+        ddpsi_m = _psi_derivatives(_joint_local(-alpha, b, L), b, L)[1] if 2 in want else 0.0
         put(SEG_LEFT_STRUT, lambda: r * (2 * np.arctan2(l_r * c, l_r * s - b) + alpha), None, lambda: 2 * r * ddpsi_m)
     return out
 
@@ -132,7 +136,7 @@ def _geom(params: NeckParams) -> tuple[float, float, float]:
 
 def _cases(params: NeckParams) -> np.ndarray:
     """Segment kind of every (cable j, joint i), (m, N) int (:meth:`Routing.segment_cases`)."""
-    return params.routing.segment_cases(params.n_joints)
+    return cast("Routing", params.routing).segment_cases(params.n_joints)     # __post_init__ sets it
 
 
 def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
@@ -157,19 +161,20 @@ def _z(seg: np.ndarray, params: NeckParams) -> np.ndarray:
     return -np.swapaxes(_gather(seg, _cases(params)), -1, -2)
 
 
-def cable_lengths(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def cable_lengths(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Variable cable lengths l_c(alpha) - l_c(0) (eqs 3-19 for any routing), shape (..., m), m."""
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     return _lengths(a, params, _evaluate(a, params, (0,))[0])
 
 
-def transmission_matrix(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def transmission_matrix(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Z(alpha) = -d l_c / d alpha (eqs 22, 23), closed form, shape (..., N, m), m."""
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     return _z(_evaluate(a, params, (1,))[1], params)
 
 
-def transmission_matrix_dot(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def transmission_matrix_dot(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                            allow_outside_range: bool = False) -> np.ndarray:
     """dZ/dt for joint velocities alpha_dot (rad/s), shape (..., N, m), m/s.
 
     Column j of Z depends on alpha_i only through row i, so Zdot_ij = (dZ_ij/dalpha_i) alpha_dot_i.
@@ -186,7 +191,8 @@ class CableKinematics(NamedTuple):
     Zdot: np.ndarray     # (..., N, m), m/s
 
 
-def cable_kinematics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> CableKinematics:
+def cable_kinematics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                     allow_outside_range: bool = False) -> CableKinematics:
     """Lengths, Z and Zdot in one pass (what a dynamics step needs)."""
     n = params.n_joints
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
@@ -195,14 +201,16 @@ def cable_kinematics(alpha, alpha_dot, params: NeckParams, *, allow_outside_rang
     return CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params) * ad[..., :, None])
 
 
-def elongation(theta, alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def elongation(theta: npt.ArrayLike, alpha: npt.ArrayLike, params: NeckParams, *,
+               allow_outside_range: bool = False) -> np.ndarray:
     """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
     a = params.actuation
     return (cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
             + (a.r_d / a.R) * np.asarray(theta, dtype=float))
 
 
-def motor_angles_rigid(alpha, params: NeckParams, elongation=None, *, allow_outside_range: bool = False) -> np.ndarray:
+def motor_angles_rigid(alpha: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None, *,
+                       allow_outside_range: bool = False) -> np.ndarray:
     """Motor angles theta = (R/r_d)(x_c - (l_c - l_c0)) (eq 20 when x_c = 0), shape (..., m), rad."""
     a = params.actuation
     x = 0.0 if elongation is None else np.asarray(elongation, dtype=float)

@@ -25,6 +25,7 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
 from neck_sim.analytic.geometry import (check_alpha, check_pose, corner_terms_kernel, forward_kinematics,
@@ -60,7 +61,8 @@ def linkage_constants(params: NeckParams) -> np.ndarray:
 
 
 @kernel
-def linkage_kernel(a, ad, const, M, c, G) -> None:
+def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarray, c: np.ndarray,
+                   G: np.ndarray) -> None:
     """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`linkage_dynamics`).
 
     Bodies of joint i: diagonal AD, diagonal BC, top bar CD (slender rods, I = m l^2 / 12).  Frame
@@ -164,7 +166,8 @@ def _linkage_rows(a, ad, const, M, c, G) -> None:
         linkage_kernel(a[r], ad[r], const, M[r], c[r], G[r])
 
 
-def linkage_dynamics(alpha, alpha_dot, params: NeckParams, *, allow_outside_range: bool = False) -> LinkageDynamics:
+def linkage_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                     allow_outside_range: bool = False) -> LinkageDynamics:
     """M_m, c_m and g of the bar linkage (eq 30's left-hand side), batched over leading axes.
 
     alpha, alpha_dot (..., N) rad, rad/s; M_m (..., N, N) kg m^2, c_m, g (..., N) N m
@@ -184,7 +187,8 @@ def linkage_dynamics(alpha, alpha_dot, params: NeckParams, *, allow_outside_rang
     return LinkageDynamics(M.reshape(batch + (n, n)), c.reshape(batch + (n,)), G.reshape(batch + (n,)))
 
 
-def mass_matrix(alpha, params: NeckParams, motors: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
+def mass_matrix(alpha: npt.ArrayLike, params: NeckParams, motors: bool = True, *,
+                allow_outside_range: bool = False) -> np.ndarray:
     """Inertia matrix M(alpha) of eq (24) (with motors) or M_m (without), (..., N, N), kg m^2."""
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     M = linkage_dynamics(a, np.zeros_like(a), params, allow_outside_range=True).M
@@ -194,7 +198,7 @@ def mass_matrix(alpha, params: NeckParams, motors: bool = True, *, allow_outside
     return M
 
 
-def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
+def bias_forces(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, motors: bool = True, *,
                 allow_outside_range: bool = False) -> np.ndarray:
     """Coriolis/centrifugal vector c(alpha, alpha_dot) of eq (26) corrected, (..., N), N m.
 
@@ -208,13 +212,13 @@ def bias_forces(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
     return c
 
 
-def gravity_spring_torque(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def gravity_spring_torque(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """g(alpha): gradient of the gravity and side-spring potential (eq 25), (..., N), N m."""
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     return linkage_dynamics(a, np.zeros_like(a), params, allow_outside_range=True).g
 
 
-def potential_energy(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
+def potential_energy(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """Gravity + side-spring potential (J), from the forward kinematics (independent of g)."""
     kin = forward_kinematics(alpha, params, allow_outside_range=allow_outside_range)
     inert = params.inertia
@@ -231,7 +235,7 @@ def potential_energy(alpha, params: NeckParams, *, allow_outside_range: bool = F
     return v + 0.5 * (k * ((left - l0) ** 2 + (right - l0) ** 2)).sum(-1)
 
 
-def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
+def kinetic_energy(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, motors: bool = True, *,
                    allow_outside_range: bool = False) -> np.ndarray:
     """1/2 alpha_dot^T M alpha_dot (J)."""
     ad = np.asarray(alpha_dot, dtype=float)
@@ -240,7 +244,8 @@ def kinetic_energy(alpha, alpha_dot, params: NeckParams, motors: bool = True, *,
 
 
 @dual
-def arctan_friction(theta_dot, c_s, f_s):
+def arctan_friction(theta_dot: np.ndarray | float, c_s: np.ndarray | float,
+                    f_s: np.ndarray | float) -> np.ndarray | float:
     """Arctan dry friction of eq (37), (2/pi) arctan(c_s theta_dot) f_s, as a force along the cable (N).
 
     theta_dot rad/s, c_s s/rad, f_s N; arrays broadcast (numpy) or scalars (compiled twin ``.jit``).
@@ -248,7 +253,7 @@ def arctan_friction(theta_dot, c_s, f_s):
     return (2 / np.pi) * np.arctan(c_s * theta_dot) * f_s
 
 
-def motor_friction(theta_dot, params: NeckParams, f_s=None) -> np.ndarray:
+def motor_friction(theta_dot: npt.ArrayLike, params: NeckParams, f_s: npt.ArrayLike | None = None) -> np.ndarray:
     """Arctan dry friction at the motors, eq (37): (2/pi) arctan(c_s theta_dot) f_s, (..., m), N.
 
     Expressed as a force along the cable; ``f_s`` defaults to the plant's ``params.friction.f_s``.
@@ -263,7 +268,8 @@ def cap_elongation(k, lam, t_cap: float) -> np.ndarray:
     return t_cap / (k + lam * t_cap)
 
 
-def cable_tension(x, x_dot, params: NeckParams, k=None, lam=None, c_a=None) -> np.ndarray:
+def cable_tension(x: npt.ArrayLike, x_dot: npt.ArrayLike, params: NeckParams, k: npt.ArrayLike | None = None,
+                  lam: npt.ArrayLike | None = None, c_a: npt.ArrayLike | None = None) -> np.ndarray:
     """Tension-only cable tension of eq (54) solved for t, (..., m), N.
 
     t = (k x + c_a x_dot) / (1 - lambda x) for x > 0, 0 when slack (x <= 0) and never negative.
@@ -289,13 +295,13 @@ def _stiffness(tension, k, lam):
     return k + lam * np.maximum(tension, 0.0)
 
 
-def cable_stiffness(tension, k, lam) -> np.ndarray:
+def cable_stiffness(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
     """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
     (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
     return _stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float), np.asarray(lam, dtype=float))
 
 
-def static_elongation(tension, k, lam) -> np.ndarray:
+def static_elongation(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
     """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., m) m, 0 for t <= 0.
 
     The one definition of elongation from tension; :func:`elongation_step` and
@@ -308,7 +314,8 @@ def _euler_elongation(x, tension, dt, c_a, stiffness):
     return x + dt / c_a * (tension - stiffness * x)
 
 
-def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
+def elongation_step(x: npt.ArrayLike, tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: npt.ArrayLike,
+                    c_a: npt.ArrayLike) -> np.ndarray:
     """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (m,) m.
 
     ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
@@ -317,7 +324,8 @@ def elongation_step(x, tension, dt: float, k, lam, c_a) -> np.ndarray:
     return _euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
 
 
-def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
+def elongation_series(tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: npt.ArrayLike, c_a: npt.ArrayLike,
+                      x0: npt.ArrayLike | None = None) -> np.ndarray:
     """Elongations x (T, m) m of eq (54) for tensions (T, m) N held per sample of ``dt`` s.
 
     Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
@@ -338,8 +346,8 @@ def elongation_series(tension, dt: float, k, lam, c_a, x0=None) -> np.ndarray:
     return x
 
 
-def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool = True, *,
-                       allow_outside_range: bool = False) -> np.ndarray:
+def rigid_acceleration(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, f: npt.ArrayLike, params: NeckParams,
+                       friction: bool = True, *, allow_outside_range: bool = False) -> np.ndarray:
     """alpha_ddot of eq (32) with inextensible cables (x_c = 0), (..., N), rad/s^2.
 
     Motor speeds for friction follow eq (21): theta_dot = (R/r_d) Z^T alpha_dot.
@@ -352,11 +360,11 @@ def rigid_acceleration(alpha, alpha_dot, f, params: NeckParams, friction: bool =
     ia = act.reflected_inertia
     M = lk.M + ia * ck.Z @ Zt
     c = lk.c + ia * np.einsum("...ij,...j->...i", ck.Z, np.einsum("...ij,...i->...j", ck.Zdot, ad))
-    f = np.asarray(f, dtype=float)
+    forces = np.asarray(f, dtype=float)
     if friction:
         theta_dot = (act.R / act.r_d) * np.einsum("...ij,...i->...j", ck.Z, ad)
-        f = f - motor_friction(theta_dot, params)
-    rhs = np.einsum("...ij,...j->...i", ck.Z, f) - c - lk.g
+        forces = forces - motor_friction(theta_dot, params)
+    rhs = np.einsum("...ij,...j->...i", ck.Z, forces) - c - lk.g
     return np.linalg.solve(M, rhs[..., None])[..., 0]
 
 
@@ -369,8 +377,8 @@ class ElasticState(NamedTuple):
     theta_dot: np.ndarray
 
 
-def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: bool = True, *,
-                       allow_outside_range: bool = False):
+def elastic_derivative(state: ElasticState, f: npt.ArrayLike, params: NeckParams, friction: bool = True, *,
+                       allow_outside_range: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(alpha_ddot, theta_ddot, tension) of eqs (29), (30) with elastic cables (eq 54)."""
     act = params.actuation
     ck = cable_kinematics(state.alpha, state.alpha_dot, params, allow_outside_range=allow_outside_range)
@@ -386,10 +394,11 @@ def elastic_derivative(state: ElasticState, f, params: NeckParams, friction: boo
     return alpha_ddot, theta_ddot, t
 
 
-def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], duration: float,
-                     params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
-                     alpha_dot0=None, theta_dot0=None, rtol: float = 1e-8, atol: float = 1e-10,
-                     allow_outside_range: bool = False):
+def simulate_elastic(alpha0: npt.ArrayLike, theta0: npt.ArrayLike, forces: Callable[[float], np.ndarray],
+                     duration: float, params: NeckParams, *, sample_dt: float = 1e-3, friction: bool = True,
+                     alpha_dot0: npt.ArrayLike | None = None, theta_dot0: npt.ArrayLike | None = None,
+                     rtol: float = 1e-8, atol: float = 1e-10,
+                     allow_outside_range: bool = False) -> tuple[np.ndarray, ElasticState]:
     """Integrate eqs (29)-(30) (scipy LSODA) for forces(t) -> (m,) N; returns (t, ElasticState)."""
     from scipy.integrate import solve_ivp
 
@@ -413,9 +422,10 @@ def simulate_elastic(alpha0, theta0, forces: Callable[[float], np.ndarray], dura
     return sol.t, ElasticState(y[:, :n], y[:, n:2 * n], y[:, 2 * n:2 * n + m], y[:, 2 * n + m:])
 
 
-def simulate_rigid(alpha0, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,
-                   *, sample_dt: float = 1e-3, friction: bool = True, alpha_dot0=None,
-                   rtol: float = 1e-10, atol: float = 1e-12, allow_outside_range: bool = False):
+def simulate_rigid(alpha0: npt.ArrayLike, forces: Callable[[float], np.ndarray], duration: float, params: NeckParams,
+                   *, sample_dt: float = 1e-3, friction: bool = True, alpha_dot0: npt.ArrayLike | None = None,
+                   rtol: float = 1e-10, atol: float = 1e-12,
+                   allow_outside_range: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate eq (32) with inextensible cables (scipy DOP853); returns (t, alpha, alpha_dot)."""
     from scipy.integrate import solve_ivp
 

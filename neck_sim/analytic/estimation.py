@@ -8,7 +8,10 @@ motors allow is l_c - l_c0 = x_c - (r_d/R) theta.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
 from neck_sim.analytic.dynamics import static_elongation
@@ -16,6 +19,9 @@ from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
 from neck_sim.params import NeckParams
 from neck_sim.routing import SEG_RIGHT_END, SEG_RIGHT_STRUT
+
+if TYPE_CHECKING:
+    from neck_sim.params import Routing
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
            "cable_stretch_at_f_max",
@@ -33,8 +39,8 @@ def _right_segments(alpha: np.ndarray, params: NeckParams):
     return (seg[0][..., SEG_RIGHT_END, 0], seg[1][..., SEG_RIGHT_END, 0], seg[0][..., SEG_RIGHT_STRUT, 0])
 
 
-def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol: float = 1e-13,
-                              max_iter: int = 60) -> np.ndarray:
+def estimate_alpha_triangular(theta: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None, *,
+                              tol: float = 1e-13, max_iter: int = 60) -> np.ndarray:
     """alpha_hat from the N right cables, joint after joint (eq 33), shape (..., N), rad.
 
     Joint j's right cable length is sum_{i<j} case (d)(alpha_i) + case (b)(alpha_j); case (b) is
@@ -45,7 +51,7 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
     """
     n = params.n_joints
     act = params.actuation
-    if not params.routing.is_paper_kind(n):
+    if not cast("Routing", params.routing).is_paper_kind(n):      # __post_init__ sets it
         raise ValueError("estimate_alpha_triangular: eq (33) needs the paper's routing (right cable j strut-routed "
                          "below joint j and attached at D_j, plus one long left cable); this neck's routing differs")
     th = check_cables(theta, n + 1, "theta")
@@ -87,7 +93,7 @@ def estimate_alpha_triangular(theta, params: NeckParams, elongation=None, *, tol
 
 
 @kernel
-def pinv_increment_kernel(Z, rhs, out) -> bool:
+def pinv_increment_kernel(Z: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> bool:
     """out = (Z Z^T)^{-1} Z rhs for one sample: Z (N, N+1) m, rhs (N+1,) m; False if Z Z^T is singular."""
     n = Z.shape[0]
     zz = np.empty((n, n))
@@ -116,8 +122,8 @@ def _pinv_rows(Z, rhs, out) -> int:
     return -1
 
 
-def pinv_increment(alpha_hat, d_theta, params: NeckParams, d_elongation=None, *,
-                   allow_outside_range: bool = False) -> np.ndarray:
+def pinv_increment(alpha_hat: npt.ArrayLike, d_theta: npt.ArrayLike, params: NeckParams,
+                   d_elongation: npt.ArrayLike | None = None, *, allow_outside_range: bool = False) -> np.ndarray:
     """One step of eq (35) corrected: (Z(alpha_hat)^T)^+ [(r_d/R) d_theta - d_x_c], (..., N), rad.
 
     Needs at least as many cables as joints (m >= N), so that Z has full row rank and
@@ -152,8 +158,8 @@ def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:
     return static_elongation(np.full(params.n_cables, params.actuation.f_max), cab.k, cab.lam)
 
 
-def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None, *,
-                        tol: float | None = None) -> np.ndarray:
+def estimate_alpha_pinv(theta: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None,
+                        alpha0: npt.ArrayLike | None = None, *, tol: float | None = None) -> np.ndarray:
     """alpha_hat over a time series by eq (35) corrected, all m cables, shape (..., T, N), rad.
 
     ``theta`` (..., T, m); ``elongation`` (..., T, m) or None; ``alpha0`` (..., N) the pose at
@@ -180,7 +186,7 @@ def estimate_alpha_pinv(theta, params: NeckParams, elongation=None, alpha0=None,
         dx = None if x is None else x[..., t, :] - x[..., t - 1, :]
         a = a + pinv_increment(a, th[..., t, :] - th[..., t - 1, :], params, dx, allow_outside_range=True)
         out[..., t, :] = a
-    _check_reachable(out, th, x, params, np.linalg.norm(cable_stretch_at_f_max(params)) if tol is None else tol)
+    _check_reachable(out, th, x, params, float(np.linalg.norm(cable_stretch_at_f_max(params))) if tol is None else tol)
     return out
 
 

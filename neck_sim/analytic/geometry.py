@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.jit import dual
 from neck_sim.params import NeckParams
@@ -50,7 +51,7 @@ class PoseRangeError(ValueError):
     """Joint angles outside |alpha| <= ``geometry.alpha_max``, where the model is not valid."""
 
 
-def check_alpha(alpha, n_joints: int, name: str = "alpha", alpha_max: float | None = None) -> np.ndarray:
+def check_alpha(alpha: npt.ArrayLike, n_joints: int, name: str = "alpha", alpha_max: float | None = None) -> np.ndarray:
     """Return ``alpha`` as a float array of shape (..., n_joints) or raise naming the problem.
 
     With ``alpha_max`` (rad), angles beyond |alpha| <= alpha_max raise :class:`PoseRangeError`.
@@ -65,17 +66,18 @@ def check_alpha(alpha, n_joints: int, name: str = "alpha", alpha_max: float | No
     return a
 
 
-def check_pose(alpha, params: NeckParams, name: str = "alpha", allow_outside_range: bool = False) -> np.ndarray:
+def check_pose(alpha: npt.ArrayLike, params: NeckParams, name: str = "alpha",
+               allow_outside_range: bool = False) -> np.ndarray:
     """:func:`check_alpha` against the neck's joint range, unless ``allow_outside_range``."""
     return check_alpha(alpha, params.n_joints, name, None if allow_outside_range else params.geometry.alpha_max)
 
 
-def check_cables(values, n_cables: int, name: str) -> np.ndarray:
+def check_cables(values: npt.ArrayLike, n_cables: int, name: str) -> np.ndarray:
     """Return a per-cable array of shape (..., n_cables) or raise naming the problem."""
     return _check_last_axis(values, n_cables, name, "one value per cable")
 
 
-def side_lengths(alpha, params: NeckParams) -> SideLengths:
+def side_lengths(alpha: npt.ArrayLike, params: NeckParams) -> SideLengths:
     """Left and right side lengths l_l, l_r (eqs 1, 2) and d/dalpha, d2/dalpha2; shape of ``alpha``."""
     g = params.geometry
     return _sides(np.asarray(alpha, dtype=float), g.b, g.L)
@@ -100,7 +102,7 @@ def _sides(a: np.ndarray, b: float, L: float) -> SideLengths:
     return SideLengths(*_side_terms(a, b, L))
 
 
-def rotation(phi) -> np.ndarray:
+def rotation(phi: npt.ArrayLike) -> np.ndarray:
     """2-D rotation matrices, shape (..., 2, 2)."""
     phi = np.asarray(phi, dtype=float)
     c, s = np.cos(phi), np.sin(phi)
@@ -160,7 +162,7 @@ def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
                        _vec2(k[6], k[7]), _vec2(k[8], k[9]), _vec2(k[10], k[11]))
 
 
-def joint_corners(alpha, params: NeckParams) -> np.ndarray:
+def joint_corners(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """Corners A, B, C, D of single X-joints in their own base frames, shape (..., 4, 2)."""
     g = params.geometry
     a = np.asarray(alpha, dtype=float)
@@ -170,7 +172,7 @@ def joint_corners(alpha, params: NeckParams) -> np.ndarray:
     return np.stack([A, B, jl.C, jl.D], -2)
 
 
-def psi(alpha, params: NeckParams) -> np.ndarray:
+def psi(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """Angle psi of the diagonal B->C from the direction A->B (eqs 6, 7, by atan2); shape of alpha.
 
     120 deg at alpha = 0 for the paper's b, L.
@@ -205,7 +207,7 @@ class Kinematics(NamedTuple):
     head_angle: np.ndarray
 
 
-def forward_kinematics(alpha, params: NeckParams, *, allow_outside_range: bool = False) -> Kinematics:
+def forward_kinematics(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> Kinematics:
     """Corners, bar frames and head pose of the N-joint neck for joint angles alpha (..., N)."""
     g = params.geometry
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)

@@ -1,4 +1,4 @@
-"""Statics of an N-X neck driven by any number m of cables (issue 15, item 3).
+"""Statics of an N-X neck driven by any number m of cables.
 
 A neck with fewer cables than N + 1 cannot hold an arbitrary pose: its equilibria form an
 m-dimensional set in alpha-space.  This module finds them and says whether they are stable.
@@ -36,6 +36,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.cables import cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, gravity_spring_torque, static_elongation
@@ -87,7 +88,7 @@ def _chain(alpha: np.ndarray, params: NeckParams):
     return jl, np.cos(phi), np.sin(phi)
 
 
-def potential_hessian(alpha, params: NeckParams) -> np.ndarray:
+def potential_hessian(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """Hessian of the gravity + side-spring (+ payload) potential V, closed form, (..., N, N) N m/rad.
 
     Its gradient is g(alpha) of eq (25) (:func:`~neck_sim.analytic.gravity_spring_torque`).
@@ -121,7 +122,7 @@ def potential_hessian(alpha, params: NeckParams) -> np.ndarray:
     return H
 
 
-def head_jacobian(alpha, params: NeckParams) -> np.ndarray:
+def head_jacobian(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """d(head x, head y, head angle)/dalpha of the head bar's centre, closed form, (..., 3, N)."""
     a = check_alpha(alpha, params.n_joints)
     jl, c, s = _chain(a, params)
@@ -133,7 +134,7 @@ def head_jacobian(alpha, params: NeckParams) -> np.ndarray:
     return np.stack([tail_x + dmx, tail_y + dmy, np.ones_like(a)], -2)
 
 
-def tension_slope(x, params: NeckParams) -> np.ndarray:
+def tension_slope(x: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """dt/dx of the static cable law (eq 54 at x_dot = 0), (..., m) N/m; 0 where slack."""
     cab = params.cables
     k, lam = np.asarray(cab.k), np.asarray(cab.lam)
@@ -142,7 +143,7 @@ def tension_slope(x, params: NeckParams) -> np.ndarray:
     return np.where(x > 0, k / (1.0 - lam * np.minimum(x, x_star)) ** 2, 0.0)
 
 
-def tension_elongation(tension, params: NeckParams) -> np.ndarray:
+def tension_elongation(tension: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """Elongation x_c (m) at which a resting cable carries ``tension`` (N): eq (54) inverted."""
     cab = params.cables
     k, lam = np.asarray(cab.k), np.asarray(cab.lam)
@@ -154,7 +155,7 @@ def tension_elongation(tension, params: NeckParams) -> np.ndarray:
     return np.where(t <= cab.t_cap, static_elongation(t, k, lam), x_star + beyond)
 
 
-def motor_angles_for(alpha, tension, params: NeckParams) -> np.ndarray:
+def motor_angles_for(alpha: npt.ArrayLike, tension: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """Motor angles theta (..., m) rad that hold pose ``alpha`` with resting cables at ``tension``
     (inverse statics for motor-angle control): theta = (R/r_d)(x_c(t) - (l_c - l_c0))."""
     act = params.actuation
@@ -167,7 +168,7 @@ def _cable_curvature_term(Zp: np.ndarray, t: np.ndarray) -> np.ndarray:
     return d[..., :, None] * np.eye(d.shape[-1])
 
 
-def force_stiffness(alpha, forces, params: NeckParams) -> np.ndarray:
+def force_stiffness(alpha: npt.ArrayLike, forces: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """K_f: Hessian of V + f . l_c (cables as ideal force sources), (..., N, N) N m/rad."""
     a = check_alpha(alpha, params.n_joints)
     f = check_cables(forces, params.n_cables, "forces")
@@ -175,7 +176,7 @@ def force_stiffness(alpha, forces, params: NeckParams) -> np.ndarray:
     return potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, f)
 
 
-def motor_stiffness(alpha, theta, params: NeckParams) -> np.ndarray:
+def motor_stiffness(alpha: npt.ArrayLike, theta: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     """K_theta: Hessian of V + sum_j E_j(x_cj) with motors held at ``theta``, (..., N, N) N m/rad."""
     return _motor_terms(check_alpha(alpha, params.n_joints), _check_theta(theta, params), params)[1]
 
@@ -251,7 +252,8 @@ def _start(alpha0, shape, params):
     return np.broadcast_to(a0, shape + (n,)).copy()
 
 
-def equilibrium_for_forces(forces, params: NeckParams, alpha0=None, *, payload_mass: float | None = None,
+def equilibrium_for_forces(forces: npt.ArrayLike, params: NeckParams, alpha0: npt.ArrayLike | None = None, *,
+                           payload_mass: float | None = None,
                            tol: float = 1e-9, max_iter: int = 60, max_step: float = 0.1) -> Equilibrium:
     """Static poses for constant cable forces ``forces`` (..., m) N (t = f), from ``alpha0``.
 
@@ -268,7 +270,8 @@ def equilibrium_for_forces(forces, params: NeckParams, alpha0=None, *, payload_m
     return Equilibrium(*(x.reshape(f.shape[:-1] + x.shape[1:]) for x in eq))
 
 
-def equilibrium_for_motor_angles(theta, params: NeckParams, alpha0=None, *, payload_mass: float | None = None,
+def equilibrium_for_motor_angles(theta: npt.ArrayLike, params: NeckParams, alpha0: npt.ArrayLike | None = None, *,
+                                 payload_mass: float | None = None,
                                  tol: float = 1e-9, max_iter: int = 60, max_step: float = 0.1) -> Equilibrium:
     """Static poses with motors held at ``theta`` (..., m) rad and elastic cables (eq 54, at rest).
 
@@ -302,7 +305,8 @@ def _task(alpha, params, alpha_target, head_target):
     return head - head_target, head_jacobian(alpha, params)[: head_target.size]
 
 
-def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, alpha0=None,
+def inverse_statics(params: NeckParams, *, alpha_target: npt.ArrayLike | None = None,
+                    head_target: npt.ArrayLike | None = None, alpha0: npt.ArrayLike | None = None,
                     f_min: float | None = None, f_max: float | None = None, regularisation: float = 1e-3,
                     payload_mass: float | None = None) -> HoldingSolution:
     """Forces in [f_min, f_max] whose equilibrium comes closest to a target (inverse statics).
@@ -371,7 +375,8 @@ def inverse_statics(params: NeckParams, *, alpha_target=None, head_target=None, 
     return HoldingSolution(forces, eq, err)
 
 
-def least_tensions(alpha, params: NeckParams, f_min: float | None = None, f_max: float | None = None) -> np.ndarray:
+def least_tensions(alpha: npt.ArrayLike, params: NeckParams, f_min: float | None = None,
+                   f_max: float | None = None) -> np.ndarray:
     """The smallest total tension (m,) N in [f_min, f_max] that holds pose ``alpha`` (N,) exactly:
     the linear program min sum t subject to Z t = g (eq 30 at rest); ValueError if none does."""
     from scipy.optimize import linprog
@@ -387,7 +392,8 @@ def least_tensions(alpha, params: NeckParams, f_min: float | None = None, f_max:
     return res.x
 
 
-def friction_band(forces, alpha, params: NeckParams, f_s=None, max_corners: int = 256, seed: int = 0) -> Equilibrium:
+def friction_band(forces: npt.ArrayLike, alpha: npt.ArrayLike, params: NeckParams, f_s: npt.ArrayLike | None = None,
+                  max_corners: int = 256, seed: int = 0) -> Equilibrium:
     """Equilibria between dry friction acting one way and the other at every motor.
 
     A motor commanded ``forces`` (m,) N that has stopped holds its cable at any tension in

@@ -1,4 +1,4 @@
-"""Static-feasible workspace of a neck with any cable count (issue 15, item 3).
+"""Static-feasible workspace of a neck with any cable count.
 
 In the sense of CASPR's wrench-feasible workspace: the poses the neck can *hold* with cable
 tensions in [f_min, f_max].  With m < N + 1 cables those poses form an m-dimensional set, so they
@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.geometry import forward_kinematics
 from neck_sim.analytic.statics import (equilibrium_for_forces, head_jacobian, motor_angles_for, motor_stiffness,
@@ -43,7 +44,7 @@ class Workspace(NamedTuple):
     lateral_stiffness: np.ndarray
 
 
-def head_stiffness(alpha, stiffness, params: NeckParams) -> np.ndarray:
+def head_stiffness(alpha: npt.ArrayLike, stiffness: np.ndarray, params: NeckParams) -> np.ndarray:
     """Stiffness of the head bar's centre along x and y, (..., 2) N/m: 1 / diag(J K^-1 J^T),
     J the head Jacobian, K (..., N, N) N m/rad a stiffness matrix at ``alpha``."""
     J = head_jacobian(alpha, params)[..., :2, :]

@@ -40,6 +40,7 @@ import signal
 import tempfile
 import threading
 import traceback
+from typing import NoReturn
 
 # name -> module (inside neck_sim.cli) implementing it
 COMMANDS: dict[str, str] = {
@@ -68,7 +69,7 @@ def package_version() -> str:
         return "unknown (not installed)"
 
 
-def one_line(text: str) -> str:
+def one_line(text: str | BaseException) -> str:
     """``text`` on one line: its lines joined with '; ' (after a ':' or '(' with a space)."""
     lines = [line.strip() for line in str(text).splitlines() if line.strip()]
     out = ""
@@ -80,7 +81,7 @@ def one_line(text: str) -> str:
 class OneLineParser(argparse.ArgumentParser):
     """argparse with a one-line error (the option, the problem, where to look) instead of the usage."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see `{self.prog} --help`)\n")
 
 
@@ -220,19 +221,21 @@ def main(argv: list[str] | None = None) -> int:
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """True when ``exc`` was raised while handling, or because of, a KeyboardInterrupt."""
     seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
             return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
     return False
 
 
 def _user_error(name: str, exc: BaseException) -> int:
     """Errors from bad input name their problem: show that on one line, not a traceback."""
+    text: str | BaseException = exc
     if isinstance(exc, OSError) and exc.filename and exc.strerror:      # "[Errno 2] ...: 'x'" -> "x: ..."
-        exc = f"{exc.filename}: {exc.strerror}"
-    print(f"{name}: error: {one_line(exc)}", file=sys.stderr)
+        text = f"{exc.filename}: {exc.strerror}"
+    print(f"{name}: error: {one_line(text)}", file=sys.stderr)
     return 2
 
 

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import argparse
+
 HELP = "check a simulated log's truth against the analytic model (cable lengths, torques, elongation sign)"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/truth and /neck/motors")
     parser.add_argument("--json", metavar="PATH", help="also write the result as JSON")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.cli.common import check_paths
     check_paths(inputs={"LOG": args.log}, files={"--json": args.json})
     from neck_sim.check import check_log

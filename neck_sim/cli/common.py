@@ -3,13 +3,18 @@ input/output path checks every command runs before it does any work."""
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
+from typing import TYPE_CHECKING, Sequence, cast
 
 from neck_sim import params as P
 
+if TYPE_CHECKING:
+    from neck_sim.logs import Log
 
-def add_params_arguments(parser, default_n_joints: int = 3) -> None:
+
+def add_params_arguments(parser: argparse.ArgumentParser, default_n_joints: int = 3) -> None:
     """``--params PATH`` and ``--n-joints N``: which neck a command works on (without either, the
     paper's neck with ``default_n_joints`` X-joints, which the command sets when it is not 3)."""
     neck = "the paper's neck" if default_n_joints == 3 else f"the paper's design with {default_n_joints} X-joints"
@@ -20,14 +25,15 @@ def add_params_arguments(parser, default_n_joints: int = 3) -> None:
     add_implausible_params_argument(parser)
 
 
-def add_implausible_params_argument(parser) -> None:
+def add_implausible_params_argument(parser: argparse.ArgumentParser) -> None:
     """``--accept-implausible-params``: load a parameter file whose values look like a unit mistake."""
     parser.add_argument("--accept-implausible-params", action="store_true",
                         help="accept parameter values that look like a unit mistake (lengths over 5 m, masses "
                              "over 10 kg, gravity over 25 m/s^2; refused by default); a warning names them")
 
 
-def load_params_file(path, option: str = "--params", accept_implausible: bool = False) -> P.NeckParams:
+def load_params_file(path: str | os.PathLike[str], option: str = "--params",
+                     accept_implausible: bool = False) -> P.NeckParams:
     """``params.load(path)`` with every error naming the option and the file; implausible values
     accepted on request are printed as warnings."""
     try:
@@ -40,7 +46,7 @@ def load_params_file(path, option: str = "--params", accept_implausible: bool = 
     return params
 
 
-def params_from_args(args) -> P.NeckParams:
+def params_from_args(args: argparse.Namespace) -> P.NeckParams:
     """The parameters chosen by :func:`add_params_arguments`' options."""
     if args.n_joints is not None and args.n_joints < 1:
         raise ValueError(f"--n-joints: must be >= 1, got {args.n_joints}")
@@ -52,7 +58,7 @@ def params_from_args(args) -> P.NeckParams:
     return P.default_params(3 if args.n_joints is None else args.n_joints)
 
 
-def check_params_fit_log(params: P.NeckParams, log, path) -> None:
+def check_params_fit_log(params: P.NeckParams, log: Log, path: str | os.PathLike[str]) -> None:
     """Refuse ``--params`` whose neck is not the log's: joints, cables and routing (one line
     naming the field, the file's and the log's value)."""
     log_p = log.params
@@ -60,7 +66,8 @@ def check_params_fit_log(params: P.NeckParams, log, path) -> None:
                                 ("n_cables", params.n_cables, log_p.n_cables)):
         if mine != theirs:
             raise ValueError(f"--params {path}: {field} = {mine}, the log's neck record has {theirs}")
-    if params.routing.segment_cases(params.n_joints).tolist() != log_p.routing.segment_cases(log_p.n_joints).tolist():
+    mine_cases = cast("P.Routing", params.routing).segment_cases(params.n_joints)      # __post_init__ sets both
+    if mine_cases.tolist() != cast("P.Routing", log_p.routing).segment_cases(log_p.n_joints).tolist():
         raise ValueError(f"--params {path}: routing.cables routes the cables differently from the log's neck record "
                          f"(its 'routing' key); use the parameter file the log was recorded with")
 
@@ -205,13 +212,13 @@ def check_paths(inputs: dict | None = None, files: dict | None = None, dirs: dic
 
 # -- measured data outside the record's ranges --------------------------------------------------
 
-def add_force_range_argument(parser) -> None:
+def add_force_range_argument(parser: argparse.ArgumentParser) -> None:
     """``--accept-out-of-range-forces``: analyse a log whose commanded forces leave [0, f_max]."""
     parser.add_argument("--accept-out-of-range-forces", action="store_true",
                         help="accept logged forces outside [0, f_max] (refused by default); the output says so")
 
 
-def report_input_warnings(log_warnings) -> dict:
+def report_input_warnings(log_warnings: Sequence[str]) -> dict:
     """Print what was accepted on request (``Log.warnings``); returns the entry for a JSON output
     (``{"input_warnings": [...]}``, empty without warnings)."""
     for text in log_warnings:

@@ -1,7 +1,8 @@
-"""`neck-sim crossval`: the MuJoCo model against the analytic model (issue 3, item 4)."""
+"""`neck-sim crossval`: the MuJoCo model against the analytic model."""
 
 from __future__ import annotations
 
+import argparse
 import math
 
 from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_int, params_from_args, positive_float,
@@ -11,7 +12,7 @@ HELP = ("compare the MuJoCo neck with the analytic model (cable lengths, Z, M, g
         "exit code 1 when an error exceeds its threshold")
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_params_arguments(parser)
     parser.add_argument("--samples", type=positive_int, default=200, help="random poses (default 200)")
     parser.add_argument("--range-deg", type=positive_float, default=60.0,
@@ -24,7 +25,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--timestep", type=positive_float, default=None, help="physics timestep for --dynamics (s)")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.crossval import crossval, format_table
 
     check_paths(inputs={"--params": args.params}, files={"--json": args.json})

@@ -1,10 +1,15 @@
-"""`neck-sim design`: compare cable routings for one neck (issue 15, item 4)."""
+"""`neck-sim design`: compare cable routings for one neck."""
 
 from __future__ import annotations
 
+import argparse
 import os
+from typing import TYPE_CHECKING
 
 from neck_sim.cli.common import add_params_arguments, check_paths, nonnegative_int, params_from_args
+
+if TYPE_CHECKING:
+    from neck_sim.params import NeckParams
 
 # without --params or --n-joints: the paper's next neck, ten X-joints
 DEFAULT_N_JOINTS = 10
@@ -13,7 +18,7 @@ HELP = (f"compare cable routings for one neck (default: the {DEFAULT_N_JOINTS}-X
         "holding forces, friction spread; writes DIR/report.md, DIR/results.json and figures")
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_params_arguments(parser, default_n_joints=DEFAULT_N_JOINTS)
     parser.add_argument("-o", "--out", metavar="DIR", default="design-report",
                         help="output directory (default ./design-report)")
@@ -26,7 +31,7 @@ def add_arguments(parser) -> None:
                         help="evaluate only the parameter file's routing")
 
 
-def neck_params(args):
+def neck_params(args: argparse.Namespace) -> NeckParams:
     """The neck to study: ``--params`` / ``--n-joints``, else the paper's design with
     :data:`DEFAULT_N_JOINTS` X-joints (sets ``args.n_joints`` then)."""
     if args.params is None and args.n_joints is None:
@@ -51,7 +56,7 @@ def _candidates(params, args):
     return [given] + proposed
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from tqdm.auto import tqdm
 
     from neck_sim.design import evaluate

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
+from typing import Any
 
 from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_params_fit_log,
                                  check_paths, load_params_file, nonnegative_float, positive_int, probability)
@@ -16,7 +18,7 @@ MODEL_HELP = ("baseline model (default: %(default)s): 'paper' (arctan friction +
               "comma-separated list of effect names, or a model.json written by a previous diagnosis")
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
     parser.add_argument("--model", metavar="MODEL", default="paper", help=MODEL_HELP)
     parser.add_argument("--params", metavar="FILE",
@@ -40,7 +42,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from identification.diagnosis import DiagnosisSettings, diagnose_log, parse_model
     from identification.diagnosis.report import REPORT_FILES, format_summary, write_report
     from neck_sim.logs import read_log
@@ -52,7 +54,7 @@ def run(args) -> int:
                 contents={"--report": REPORT_FILES})
     model = parse_model(args.model)              # fail early on a bad --model
     params = load_params_file(args.params, accept_implausible=args.accept_implausible_params) if args.params else None
-    kw = {}
+    kw: dict[str, Any] = {}
     if args.candidates:
         kw["candidates"] = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     settings = DiagnosisSettings(max_steps=args.steps, alpha=args.alpha, min_improvement=args.min_improvement,
@@ -60,6 +62,8 @@ def run(args) -> int:
     log = read_log(args.log, start=args.start, end=args.end, topics=("motors", "camera"),
                    require=("motors", "camera"), accept_out_of_range_forces=args.accept_out_of_range_forces)
     require_camera_frames(log)
+    if log.motors is None or log.camera is None:        # read_log required both
+        raise ValueError(f"{args.log}: needs /neck/motors and /neck/camera")
     if params is not None:
         check_params_fit_log(params, log, args.params)
     print(f"diagnosing {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames, "

@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from neck_sim.effects import Effect
+
 HELP = "list the effect vocabulary: what each effect is, its fitted parameters (units), shapes and prerequisites"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
 
 
-def describe(cls) -> tuple[str, str, str, str]:
+def describe(cls: type[Effect]) -> tuple[str, str, str, str]:
     """(parameters, shapes, requires, plant) of an effect class, as text (its fitted parameters
     and shapes from its columns, none when the diagnosis has no columns for it)."""
     from identification.diagnosis import columns
@@ -23,7 +29,7 @@ def describe(cls) -> tuple[str, str, str, str]:
     return params or "-", shapes or "-", ", ".join(cls.requires) or "-", plant
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim import effects
 
     rows = [(cls.name, cls.description, *describe(cls)) for cls in effects.registered()]

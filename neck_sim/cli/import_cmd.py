@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 from neck_sim.cli.common import add_force_range_argument, add_implausible_params_argument
 
 HELP = "turn the prototype's motors/camera CSV files into an MCAP log (columns: see --help)"
@@ -15,7 +17,7 @@ the --params routing, m = N + 1 on the paper's):
 t is seconds since the start of the run (or use --shift-time)."""
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     import argparse
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
@@ -31,7 +33,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="MCAP", help="log to write")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim import params as P
     from neck_sim.cli.common import check_paths, load_params_file
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
 from neck_sim import params as P
 from neck_sim.cli.common import add_implausible_params_argument
 
 HELP = "print every constant with unit and source, or write a parameter file to edit"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-joints", type=int, default=None, help="number of X-joints N (default 3)")
     parser.add_argument("--load", metavar="PATH", help="show this parameter file (.json/.toml) instead of the defaults")
     add_implausible_params_argument(parser)
@@ -18,7 +20,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", metavar="PATH", help="write the parameters to PATH (.json or .toml)")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.cli.common import add_implausible_params_argument, check_paths, load_params_file
     check_paths(inputs={"--load": args.load}, files={"-o": args.output})
     chosen = [opt for opt, given in (("--load", args.load), ("--example", args.example),

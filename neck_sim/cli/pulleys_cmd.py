@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 
+import argparse
+
 from neck_sim import params as P
 from neck_sim.atomic import atomic_write_json
 from neck_sim.cli.common import check_paths, nonnegative_int, positive_int
@@ -10,7 +12,7 @@ from neck_sim.cli.common import check_paths, nonnegative_int, positive_int
 HELP = "recompute the paper's pulley indicators (torque 16 percent, eq 35 increments 13 percent)"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-joints", type=positive_int, default=3, metavar="N",
                         help="X-joints of the paper's neck to study")
     parser.add_argument("--samples", type=positive_int, default=100_000, metavar="K",
@@ -19,7 +21,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.pulley_study import pulley_effect    # numba kernels: only when the command runs
 
     check_paths(files={"--json": args.json})

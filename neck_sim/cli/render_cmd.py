@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
 from neck_sim.cli.common import add_params_arguments, check_paths, params_from_args, positive_int
 
 HELP = ("render the neck at the four main configurations of the control test (paper Fig. 10) with MuJoCo "
         "offscreen (EGL or OSMesa) into one PNG")
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", default="neck_fig10.png", metavar="PNG",
                         help="output picture (default neck_fig10.png)")
     parser.add_argument("--width", type=positive_int, default=2000, metavar="W",
@@ -18,7 +20,7 @@ def add_arguments(parser) -> None:
                         help="OpenGL backend (default auto: MUJOCO_GL if set, else EGL, then OSMesa)")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.render import render_figure10
 
     check_paths(inputs={"--params": args.params}, files={"-o": args.output})

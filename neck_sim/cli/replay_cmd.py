@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 
@@ -22,7 +23,7 @@ def _parse_change(text: str) -> tuple[str, object]:
     return key.strip(), tuple(parsed) if isinstance(parsed, list) else parsed
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors (and /neck/truth for alpha drift)")
     parser.add_argument("-o", "--output", metavar="MCAP", help="replay log (default: LOG with -replay.mcap)")
     parser.add_argument("--no-output", action="store_true", help="do not write the replay log")
@@ -38,7 +39,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import math
 
     from neck_sim.atomic import atomic_write_json

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 HELP = ("reproduce the paper in simulation: cross-validation, identification (Tables 1-2), control tests, "
         "Table 3, diagnosis, figures; writes report.md, results.json and the MCAP logs")
 
@@ -9,7 +11,7 @@ HELP = ("reproduce the paper in simulation: cross-validation, identification (Ta
 from neck_sim.cli.common import nonnegative_int, positive_float, positive_int
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="reproduce", metavar="DIR", help="output directory (default ./reproduce, in the current directory; a checkout's .gitignore "
                              "ignores it at the root)")
     parser.add_argument("--quick", action="store_true",
@@ -27,7 +29,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress output")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from neck_sim.cli.common import check_paths
     check_paths(dirs={"--out": args.out})
     from neck_sim.experiments import ReproduceSettings, reproduce

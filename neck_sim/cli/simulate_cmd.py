@@ -3,6 +3,8 @@ any neck of any routing moved by a controller that can move it (:mod:`controller
 
 from __future__ import annotations
 
+import argparse
+
 from neck_sim.cli.common import (add_params_arguments, check_paths, nonnegative_float, nonnegative_int, params_from_args,
                                  positive_float)
 
@@ -11,7 +13,7 @@ import os
 HELP = "run a control law closed loop on the simulated neck, log MCAP, print the paper's metrics"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     from controllers.selection import CONTROLLERS, LQR_FROM_JOINTS, TRAJECTORY_NAMES
 
     parser.add_argument("--trajectory", default=None, metavar="NAME",
@@ -54,7 +56,7 @@ def add_arguments(parser) -> None:
     add_live_arguments(parser)
 
 
-def add_live_arguments(parser) -> None:
+def add_live_arguments(parser: argparse.ArgumentParser) -> None:
     """--live, --live-pace, --live-port (docs/live-view.md)."""
     parser.add_argument("--live", action="store_true",
                         help="serve the run to Foxglove at ws://127.0.0.1:PORT (needs foxglove-sdk: "
@@ -106,7 +108,7 @@ def _plant_factory(effects, timestep):
                                                     rigid_cables=rigid_cables)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.live:
         return _run_live(args)
     from controllers import experiments as ex

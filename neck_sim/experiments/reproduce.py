@@ -23,11 +23,18 @@ import platform
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Iterable, Sequence
 
 import numpy as np
 
 from neck_sim.atomic import atomic_write_bytes, atomic_write_json
-from neck_sim.params import default_params
+from neck_sim.params import NeckParams, default_params
+
+if TYPE_CHECKING:
+    import concurrent.futures as cf
+
+    from neck_sim.campaign import ExecutorSpec
+    from controllers.parallel import RunSpec
 
 __all__ = ["ReproduceSettings", "Reproduction", "reproduce", "paper_runs", "run_experiments", "FIGURE_CAPTIONS",
            "ordered_figures"]
@@ -58,7 +65,7 @@ class ReproduceSettings:
         return 0.5 if self.quick else 1.0
 
     @property
-    def executor(self):
+    def executor(self) -> ExecutorSpec:
         """Where the closed-loop runs and the simulator comparison run (neck_sim.campaign)."""
         from neck_sim.campaign import ExecutorSpec
 
@@ -129,7 +136,7 @@ class Reproduction:
         return self.results
 
 
-def paper_runs(params, settings: ReproduceSettings, logs_dir: str) -> list:
+def paper_runs(params: NeckParams, settings: ReproduceSettings, logs_dir: str) -> list[RunSpec]:
     """The paper's closed-loop runs as :class:`~controllers.parallel.RunSpec`: the identification
     trajectory under law 1 (the identification run), the §7 control tests under laws 1-3 and
     Table 3's four runs (law 2 on the identification trajectory), each logged in ``logs_dir``."""
@@ -152,7 +159,8 @@ def paper_runs(params, settings: ReproduceSettings, logs_dir: str) -> list:
     return specs
 
 
-def run_experiments(specs, settings: ReproduceSettings, executor=None) -> dict:
+def run_experiments(specs: Sequence[RunSpec], settings: ReproduceSettings,
+                    executor: ExecutorSpec | cf.Executor | None = None) -> dict:
     """Run the closed-loop specs (the one executor call of the workflow); label -> RunResult.
 
     ``executor``: an executor already open (:func:`neck_sim.campaign.open_executor`), else
@@ -376,7 +384,7 @@ FIGURE_CAPTIONS = {
 """Figure file -> (the paper's figure number, caption) for the report."""
 
 
-def ordered_figures(figures) -> list[str]:
+def ordered_figures(figures: Iterable[str]) -> list[str]:
     """Figure file names in the paper's order (Fig. 4, 5, ... 16), figures the paper does not
     have after them by name."""
     known = sorted((FIGURE_CAPTIONS[n][0], n) for n in figures if n in FIGURE_CAPTIONS)
@@ -434,7 +442,7 @@ def _now() -> str:
 def _versions() -> dict:
     import importlib.metadata as md
 
-    out = {"python": platform.python_version()}
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for dist in ("neck-sim", "mujoco", "dm-control", "numpy", "scipy", "mcap"):
         try:
             out[dist] = md.version(dist)
