@@ -39,8 +39,8 @@ from controllers.estimators import CableModel, ElongationEstimator, estimated_te
 from controllers.tension import (TensionInfeasibleError, distribute_kernel, infeasible_message,
                                  tension_lower_bounds)
 from neck_sim.analytic.cables import cable_kinematics, transmission_kernel, transmission_matrix
-from neck_sim.analytic.dynamics import (_euler_elongation, _stiffness, arctan_friction, linkage_constants,
-                                       linkage_kernel, motor_friction)
+from neck_sim.analytic.dynamics import (arctan_friction, euler_elongation, linkage_constants, linkage_kernel,
+                                       motor_friction, secant_stiffness)
 from neck_sim.analytic.estimation import UnreachableError, pinv_increment_kernel
 from neck_sim.analytic.geometry import check_cables
 from neck_sim.jit import kernel
@@ -127,7 +127,7 @@ _KP, _KV, _KI, _DT, _IA, _FMAX, _AMAX, _RATIO, _ELASTIC = range(9)
 _SINGULAR_ESTIMATE, _NOT_FINITE, _OUTSIDE, _TENSION = 1, 2, 100, 1000
 # the compiled twins of the numpy formulas (numba resolves module globals, not attributes)
 _friction, _tension_hat = arctan_friction.jit, estimated_tension.jit
-_stiff, _euler = _stiffness.jit, _euler_elongation.jit
+_stiff, _euler = secant_stiffness.jit, euler_elongation.jit
 
 
 def output_slices(n: int, m: int | None = None) -> dict[str, slice]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Mapping
 
 from neck_sim.atomic import atomic_write_bytes
-from neck_sim.native import MAX_CABLES   # most joints and cables: the arrays of the compiled callback
+from neck_sim.native.source import MAX_CABLES   # most joints and cables: the arrays of the compiled callback
 from neck_sim.routing import Routing, mirrored_paper_routing, mixed4_routing, neck10x4_routing, paper_routing
 from neck_sim.validation import ParameterError, check_array, check_integer, check_positive, param_field as _f
 

@@ -8,17 +8,14 @@ the baseline's per-channel training RMS.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from scipy import stats
 
-if TYPE_CHECKING:      # a pure module: the split only types an argument
-    from identification.diagnosis.split import Split
-
-__all__ = ["mean_square", "channel_weights", "score", "block_scores", "chunk_reductions", "wilcoxon_p", "improvement",
-           "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome", "margin_ratio",
-           "decades_below", "in_band"]
+__all__ = ["mean_square", "channel_weights", "score", "block_scores", "Chunked", "chunk_reductions", "wilcoxon_p",
+           "improvement", "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome",
+           "margin_ratio", "decades_below", "in_band"]
 
 
 def clearly_nonzero(value, sigma) -> np.ndarray:
@@ -61,7 +58,16 @@ def block_scores(res: np.ndarray, mask: np.ndarray, scales: np.ndarray, n_joints
     return {"torque": float(v[:n_joints].mean()), "cable": float(v[n_joints:].mean())}
 
 
-def chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Split, scales: np.ndarray,
+class Chunked(Protocol):
+    """What :func:`chunk_reductions` reads of a split (``split.Split`` is one): ``chunk`` (S,) int,
+    the chunk of each sample.  A protocol keeps this pure module free of the split, whose settings
+    import the candidate models and, through their columns, this module again."""
+
+    @property
+    def chunk(self) -> np.ndarray: ...
+
+
+def chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Chunked, scales: np.ndarray,
                      n_joints: int) -> np.ndarray:
     """Per chunk, its share of S_base - S_cand over all samples (the shares sum to the difference)."""
     n = np.maximum(np.isfinite(base).sum(0), 1)

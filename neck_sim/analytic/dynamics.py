@@ -35,7 +35,8 @@ from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
            "bias_forces", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
-           "motor_friction", "cable_tension", "cable_stiffness", "static_elongation", "elongation_step",
+           "motor_friction", "cable_tension", "secant_stiffness", "cable_stiffness", "static_elongation",
+           "euler_elongation", "elongation_step",
            "elongation_series", "rigid_acceleration",
            "ElasticState", "elastic_derivative", "simulate_elastic", "simulate_rigid"]
 
@@ -291,14 +292,21 @@ def cable_tension(x: npt.ArrayLike, x_dot: npt.ArrayLike, params: NeckParams, k:
 
 
 @dual
-def _stiffness(tension, k, lam):
+def secant_stiffness(tension: np.ndarray | float, k: np.ndarray | float,
+                     lam: np.ndarray | float) -> np.ndarray | float:
+    """Secant stiffness k + lambda max(t, 0) of eq (54), N/m: the formula :func:`cable_stiffness`
+    runs on arrays, with a compiled scalar twin ``.jit`` for the control step.
+
+    ``tension`` N, ``k`` N/m, ``lam`` 1/m; arrays broadcast (numpy) or scalars (``.jit``).
+    """
     return k + lam * np.maximum(tension, 0.0)
 
 
 def cable_stiffness(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
     """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
     (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
-    return _stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float), np.asarray(lam, dtype=float))
+    return secant_stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float),
+                            np.asarray(lam, dtype=float))
 
 
 def static_elongation(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
@@ -310,7 +318,13 @@ def static_elongation(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLi
 
 
 @dual
-def _euler_elongation(x, tension, dt, c_a, stiffness):
+def euler_elongation(x: np.ndarray | float, tension: np.ndarray | float, dt: float, c_a: np.ndarray | float,
+                     stiffness: np.ndarray | float) -> np.ndarray | float:
+    """Eq (58): x + dt / c_a (t - K x), one explicit Euler step of eq (54) for a given secant
+    stiffness K = :func:`secant_stiffness` (N/m), with a compiled scalar twin ``.jit``.
+
+    ``x`` m, ``tension`` N, ``dt`` s, ``c_a`` N s/m > 0; arrays broadcast (numpy) or scalars.
+    """
     return x + dt / c_a * (tension - stiffness * x)
 
 
@@ -320,8 +334,8 @@ def elongation_step(x: npt.ArrayLike, tension: npt.ArrayLike, dt: float, k: npt.
 
     ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
     applied during it, ``dt`` s, ``c_a`` N s/m > 0.  The compiled control step calls the same
-    formulas' twins (``_stiffness.jit``, ``_euler_elongation.jit``)."""
-    return _euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
+    formulas' twins (``secant_stiffness.jit``, ``euler_elongation.jit``)."""
+    return euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
 
 
 def elongation_series(tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: npt.ArrayLike, c_a: npt.ArrayLike,

@@ -151,8 +151,8 @@ def _python_control(m, d) -> None:
     record = entry[0]() if entry is not None else None
     if record is not None and record.model is m and entry[1] == "python":
         if DISPATCH._python_forces is None:
-            # imported at first use: neck_sim.params imports this package for MAX_CABLES, and the
-            # reference physics imports neck_sim.params
+            # imported at first use: importing neck_sim.params runs this package's __init__ (params
+            # reads MAX_CABLES from neck_sim.native.source), and the reference physics imports params
             from neck_sim.native.reference import python_forces
             DISPATCH._python_forces = python_forces
         DISPATCH._python_forces(record)
