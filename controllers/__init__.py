@@ -36,13 +36,13 @@ if TYPE_CHECKING:
     from controllers.run_result import Metrics, RunResult
     from controllers.selection import CONTROLLERS, Choice, choose_controller, make_run_trajectory
     from controllers.tension import TensionInfeasibleError
-    from controllers.trajectories import TRAJECTORIES, make_trajectory
+    from controllers.trajectories import make_trajectory
     from controllers.underactuated import UnderactuatedController
 
 __all__ = ["ComputedTorqueController", "ControlLaw", "OutsideWorkspaceError", "ElasticLQRController", "LQRWeights",
            "UnderactuatedController", "TensionInfeasibleError",
            "run_closed_loop", "run_lockstep", "RunResult", "Metrics", "RunSpec", "run_all",
-           "CONTROLLERS", "Choice", "choose_controller", "make_run_trajectory", "TRAJECTORIES", "make_trajectory"]
+           "CONTROLLERS", "Choice", "choose_controller", "make_run_trajectory", "make_trajectory"]
 
 # exported name -> the module that defines it
 _SOURCES: dict[str, str] = {
@@ -53,7 +53,7 @@ _SOURCES: dict[str, str] = {
     "Metrics": "controllers.run_result", "RunResult": "controllers.run_result",
     **dict.fromkeys(("CONTROLLERS", "Choice", "choose_controller", "make_run_trajectory"), "controllers.selection"),
     "TensionInfeasibleError": "controllers.tension",
-    "TRAJECTORIES": "controllers.trajectories", "make_trajectory": "controllers.trajectories",
+    "make_trajectory": "controllers.trajectories",
     "UnderactuatedController": "controllers.underactuated",
 }
 

@@ -31,6 +31,7 @@ The metrics are the paper's (:mod:`controllers.run_result`).
 from __future__ import annotations
 
 import os
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -114,7 +115,7 @@ def _log_writer(log_path, plant, run_info):
     return LogWriter(log_path, plant.params, mjcf_xml=getattr(plant, "xml", None), run_info=run_info)
 
 
-def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Trajectory, *,
+def run_closed_loop(plant: Any, controller: ComputedTorqueController, trajectory: Trajectory, *,
                     log_path: str | os.PathLike | None = None, progress: bool = True, reset: bool = True,
                     run_info: dict | None = None) -> RunResult:
     """Run ``trajectory`` closed loop on ``plant`` with ``controller`` at the control rate.
@@ -132,8 +133,10 @@ def run_closed_loop(plant, controller: ComputedTorqueController, trajectory: Tra
 LOCKSTEP_GROUP = 16      # runs advanced together at most; larger batches go group after group
 
 
-def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress: bool = True, reset: bool = True,
-                 run_infos=None, stop_on_error: bool = False) -> list:
+def run_lockstep(plants: Sequence[Any], controllers: Sequence[ComputedTorqueController],
+                 trajectories: Sequence[Trajectory], *, log_paths: Sequence[str | os.PathLike | None] | None = None,
+                 progress: bool = True, reset: bool = True, run_infos: Sequence[dict | None] | None = None,
+                 stop_on_error: bool = False) -> list:
     """K independent closed-loop runs advanced together, period by period (lockstep batch).
 
     ``plants``, ``controllers``, ``trajectories`` (and ``log_paths``, ``run_infos``, default None)

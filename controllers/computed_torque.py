@@ -31,9 +31,10 @@ arguments that default to the paper's Tables 1 and 2, not to a plant's hidden va
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import NamedTuple
+from typing import Iterable, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from controllers.estimators import CableModel, ElongationEstimator, estimated_tension
 from controllers.tension import (TensionInfeasibleError, distribute_kernel, infeasible_message,
@@ -274,7 +275,7 @@ class ControllerState:
     current estimate, status (K,) int.
     """
 
-    def __init__(self, controllers):
+    def __init__(self, controllers: Iterable[ComputedTorqueController]) -> None:
         ctrls = list(controllers)
         n = ctrls[0].params.n_joints
         if any(c.params.n_joints != n for c in ctrls):
@@ -291,7 +292,7 @@ class ControllerState:
         self.status = np.zeros(len(ctrls), dtype=np.int64)
 
     @classmethod
-    def stack(cls, states) -> "ControllerState":
+    def stack(cls, states: Iterable[ControllerState]) -> "ControllerState":
         """One state of the controllers of several states, in order (arrays copied)."""
         states = list(states)
         if any(s.n != states[0].n for s in states):
@@ -328,9 +329,10 @@ class ComputedTorqueController:
     """
 
     def __init__(self, params: NeckParams | None = None, law: int | ControlLaw = ControlLaw.FRICTION, *,
-                 cable_model: CableModel | str | None = None, f_s=None, k=None, lam=None, c_a=None,
+                 cable_model: CableModel | str | None = None, f_s: npt.ArrayLike | None = None,
+                 k: npt.ArrayLike | None = None, lam: npt.ArrayLike | None = None, c_a: npt.ArrayLike | None = None,
                  omega: float | None = None, t_min: float | None = None, f_min: float | None = None,
-                 f_max: float | None = None):
+                 f_max: float | None = None) -> None:
         self.params = default_params(3) if params is None else params
         try:
             self.law = ControlLaw(int(law))
@@ -392,7 +394,7 @@ class ComputedTorqueController:
         return MotorReference(a, ad, add, theta_dot, theta_ddot, friction, lower)
 
     # -- loop --------------------------------------------------------------------------------
-    def reset(self, alpha0=None, theta0=None) -> None:
+    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None:
         """Start from pose ``alpha0`` (default straight), encoders reading ``theta0`` there
         (None: the first reading given to :meth:`step`), cables unstretched."""
         p = self.params
@@ -414,7 +416,7 @@ class ComputedTorqueController:
         """The current estimate (N,) rad."""
         return self.state.values[0, _ALPHA_HAT, : self.params.n_joints].copy()
 
-    def step_into(self, theta, k: int, ref_table: np.ndarray, out_table: np.ndarray) -> None:
+    def step_into(self, theta: npt.ArrayLike, k: int, ref_table: np.ndarray, out_table: np.ndarray) -> None:
         """One control period from encoder reading ``theta`` (N+1,) rad and row ``k`` of
         :func:`reference_table`, written into row ``k`` of ``out_table`` (T, 7N + 4) (see
         :func:`output_slices`).  Raises the controller's errors (ValueError subclasses)."""
@@ -424,7 +426,7 @@ class ComputedTorqueController:
             raise step_error(int(self.state.status[0]), self.state.values[0, _ALPHA_HAT, : self.params.n_joints],
                              self.params.geometry.alpha_max)
 
-    def step(self, theta, ref: MotorReference) -> ControlStep:
+    def step(self, theta: npt.ArrayLike, ref: MotorReference) -> ControlStep:
         """Forces for the next period from the encoder reading ``theta`` (N+1,) rad and one
         reference sample ``ref`` (:meth:`motor_reference` of a single time, or ``.at(k)``)."""
         n = self.params.n_joints

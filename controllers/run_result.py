@@ -15,6 +15,7 @@ The metrics are the paper's (§7, Table 3), in degrees, averaged over every samp
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,12 +86,13 @@ class RunResult:
         """Metrics and run information as plain JSON-able values."""
         return {"info": self.info, "metrics": self.metrics.as_dict(), "log": self.log_path}
 
-    def write_json(self, path) -> None:
+    def write_json(self, path: str | os.PathLike) -> None:
         from neck_sim.atomic import atomic_write_json
         atomic_write_json(path, self.summary())
 
 
-def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, camera_t, camera_alpha) -> Metrics:
+def compute_metrics(t: np.ndarray, alpha_d: np.ndarray, alpha_hat: np.ndarray, alpha: np.ndarray, tension: np.ndarray,
+                    force: np.ndarray, saturated: np.ndarray, camera_t: np.ndarray, camera_alpha: np.ndarray) -> Metrics:
     """Metrics of :class:`Metrics` from the recorded arrays (shapes as in :class:`RunResult`)."""
     deg = np.degrees
     track = np.abs(alpha_hat - alpha_d)

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["CONTROLLERS", "TRAJECTORY_NAMES", "LQR_FROM_JOINTS", "PLANT_TIMESTEP", "Choice", "choose_controller",
            "make_run_trajectory", "plant_timestep"]
 
+#: The controllers by the name ``neck-sim simulate --controller`` takes, each with what it runs and on which necks.
 CONTROLLERS = {
     "computed-torque": "the paper's computed-torque laws (§6.3; --law 1, 2, 3), paper routing",
     "elastic-lqr": "the elastic LQR (law 2's feed-forward, LQR feedback on a neck observer), paper routing",

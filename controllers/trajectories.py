@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.computed_torque import ComputedTorqueController, ControlLaw
+from controllers.computed_torque import ComputedTorqueController, ControlLaw, MotorReference
 from controllers.tension import TensionInfeasibleError, distribute_tensions
 from neck_sim.analytic import gravity_spring_torque, mass_matrix, transmission_matrix
 from neck_sim.params import NeckParams
@@ -45,7 +45,7 @@ def feedforward_forces(trajectory: Trajectory, params: NeckParams, sample_dt: fl
     return reference_feedforward(ctrl.motor_reference(trajectory.sample(t)), params)[1]
 
 
-def reference_feedforward(ref, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
+def reference_feedforward(ref: MotorReference, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
     """Law 2's feed-forward at a :class:`~controllers.computed_torque.MotorReference` (no feedback):
     gamma (..., N) N m of eq (66) with w = alpha_d'' and the eq (63)-(65) forces (..., N+1) N that
     produce it, unclipped."""

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Sequence, cast
 import numpy as np
 
 from neck_sim.analytic import UnreachableError, estimate_alpha_pinv, estimate_alpha_triangular, static_elongation
-from neck_sim.params import NeckParams, Routing
+from neck_sim.params import NeckParams
 
 from identification import gaps as gaps_mod
 from identification import regressors as reg
@@ -214,7 +214,7 @@ def _alpha_reconstruction(prep: Prepared, params: NeckParams, models: dict, f_s,
         return np.stack([np.interp(tc, t, a[:, j]) for j in range(a.shape[1])], axis=1)
 
     tri = None
-    if not cast(Routing, params.routing).is_paper_kind(params.n_joints):     # __post_init__ sets it
+    if not params.routing.is_paper_kind(params.n_joints):
         notes.append("eq (33) reconstruction skipped: it needs the paper's routing (cable j ends at joint j, one "
                      "long left cable); this neck's routing differs")
     else:
@@ -381,7 +381,7 @@ def identify_log(log: Log, settings: IdentificationSettings | None = None, *, pa
 
 def paper_comparable(params: NeckParams) -> bool:
     """True when the paper's Tables 1-2 describe the same cables: its 3-joint neck and routing."""
-    return params.n_joints == 3 and cast(Routing, params.routing).is_paper_kind(3)     # __post_init__ sets it
+    return params.n_joints == 3 and params.routing.is_paper_kind(3)
 
 
 def _cell(v, rel, ref_v, ref_rel, fmt):

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -123,7 +124,7 @@ class PlantBatch:
     (:meth:`fused_step`, :meth:`quiet_periods`, :meth:`ran_periods`, :attr:`framed`).
     """
 
-    def __init__(self, plants, *, yields: bool = False):
+    def __init__(self, plants: Iterable[Any], *, yields: bool = False) -> None:
         records = [_record(p) for p in plants]
         if not records or not all(isinstance(r, NativePlant) for r in records):
             raise ValueError("PlantBatch: expected one or more neck_sim.plant.Plant objects")

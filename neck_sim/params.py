@@ -22,7 +22,7 @@ import math
 import os
 import tomllib
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
 from neck_sim.atomic import atomic_write_bytes
 from neck_sim.native.source import MAX_CABLES   # most joints and cables: the arrays of the compiled callback
@@ -244,7 +244,8 @@ class NeckParams:
     cables: Cables
     control: Control
     sensors: Sensors
-    routing: Routing | None = None
+    # None asks for the paper's routing of N joints, which __post_init__ sets: never None after it
+    routing: Routing = cast(Routing, None)
 
     def __post_init__(self):
         n = self.geometry.n_joints
@@ -285,7 +286,7 @@ class NeckParams:
         """The paper's prototype (N = 3) or its natural extension to N joints."""
         return default_params(n_joints)
 
-    def replace(self, **groups_or_fields) -> "NeckParams":
+    def replace(self, **groups_or_fields: Any) -> "NeckParams":
         """Copy with whole groups replaced (``geometry=...``) or dotted fields (``**{"geometry.r": 0}``).
 
         Each group is validated once, with all its changed fields set: the order of the changes

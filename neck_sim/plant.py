@@ -55,10 +55,11 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Set as AbstractSet
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.analytic.cables import motor_angles_rigid
 from neck_sim.batch import PlantBatch, PlantDivergedError, clip_forces, delayed_controls, quantise, truth_columns
@@ -131,7 +132,7 @@ class Plant:
 
     def __init__(self, params: NeckParams | None = None, effects: Effects | None = None, seed: int = 0,
                  timestep: float | None = None, *, rigid_cables: bool = False, backend: str | None = None,
-                 integrator: str | None = None):
+                 integrator: str | None = None) -> None:
         self.params = default_params(3) if params is None else params
         if not isinstance(self.params, NeckParams):
             raise ValueError(f"params: expected NeckParams, got {type(self.params).__name__}")
@@ -272,9 +273,9 @@ class Plant:
     @property
     def backend(self) -> str:
         """This plant's callback: "native" (C) or "python"."""
-        return DISPATCH.backend_of(self._address)
+        return cast(str, DISPATCH.backend_of(self._address))     # registered for the plant's lifetime
 
-    def reset(self, alpha0=None) -> None:
+    def reset(self, alpha0: npt.ArrayLike | None = None) -> None:
         """Put the neck at pose ``alpha0`` (N,) rad (default straight) at rest, motors at zero
         elongation (plus ``pretension``), time 0, camera noise reseeded."""
         n = self.n_joints
@@ -325,7 +326,7 @@ class Plant:
             out.append(0.0 if v < 0.0 else (fmax if v > fmax else v))
         return out
 
-    def step(self, forces) -> None:
+    def step(self, forces: npt.ArrayLike) -> None:
         """Apply commanded cable forces (m,) N (clipped to [0, f_max]) for one control period."""
         solo, holder = self._solo, self.native.state.holder()
         if holder is None or holder is not solo:
@@ -351,7 +352,7 @@ class Plant:
         periods that the compiled batch does not)."""
         return self._band is not None
 
-    def camera_frame(self):
+    def camera_frame(self) -> tuple[float, np.ndarray] | None:
         """(t, alpha (N,)) of the camera frame taken during the last step (30 Hz, Gaussian noise
         of ``sensors.camera_noise`` per joint, seeded), or None."""
         state = self.native.state

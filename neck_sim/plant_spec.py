@@ -88,14 +88,14 @@ class PlantSpec:
                      rigid_cables=self.rigid_cables, backend=self.backend, **extra)
 
     @classmethod
-    def of(cls, plant) -> "PlantSpec":
+    def of(cls, plant: "Plant") -> "PlantSpec":
         """The spec of a built plant (its timestep resolved, its backend as it runs, its
         integrator as it was asked for: None when the plant chose it from c_a)."""
         return cls(plant.params, plant.effects, seed=plant.seed, timestep=plant.timestep,
                    rigid_cables=plant.rigid_cables, backend=getattr(plant, "backend", None),
                    integrator=getattr(plant, "integrator", None))
 
-    def replace(self, **changes) -> "PlantSpec":
+    def replace(self, **changes: Any) -> "PlantSpec":
         """A copy with fields replaced (``spec.replace(seed=2)``)."""
         return dataclasses.replace(self, **changes)
 

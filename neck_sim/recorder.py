@@ -48,7 +48,7 @@ class Recorder:
     """
 
     def __init__(self, n_joints: int, n_cables: int, steps: int = 0, *, runs: int = 1, truth: bool = True,
-                 reference: bool = False, estimate: bool = False):
+                 reference: bool = False, estimate: bool = False) -> None:
         n, m, steps, runs = int(n_joints), int(n_cables), int(steps), int(runs)
         if n < 1 or m < 1 or steps < 0 or runs < 1:
             raise ValueError(f"Recorder: expected n_joints, n_cables, runs >= 1 and steps >= 0, got "

@@ -123,7 +123,7 @@ class ReplayResult:
 
 
 def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, effects: Effects | None = None,
-           seed: int | None = None, changes: dict | None = None, output=None, progress: bool = False,
+           seed: int | None = None, changes: dict | None = None, output: str | os.PathLike | None = None, progress: bool = False,
            backend: str | None = None, accept_out_of_range_forces: bool = False) -> ReplayResult:
     """Re-run the logged commanded forces open loop on the (possibly changed) plant.
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from neck_sim.params import NeckParams
 
@@ -80,7 +81,7 @@ class Trajectory:
     def n_joints(self) -> int:
         return int(self.poses.shape[1])
 
-    def sample(self, t) -> TrajectorySample:
+    def sample(self, t: npt.ArrayLike) -> TrajectorySample:
         """alpha_d, alpha_d_dot, alpha_d_ddot at times ``t`` (any shape, s)."""
         t = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(t)):
@@ -121,9 +122,9 @@ def cycloidal_path(poses: Sequence, move_time: float, hold_time: float = 0.0, *,
     (default ``hold_time``) before the first move and the last one ``end_hold`` (default
     ``hold_time``).  Zero holds are left out.
     """
-    poses = np.asarray(poses, dtype=float)
-    if poses.ndim != 2 or poses.shape[0] < 2:
-        raise ValueError(f"poses: expected shape (K+1, N) with K >= 1 moves, got {poses.shape}")
+    knots = np.asarray(poses, dtype=float)
+    if knots.ndim != 2 or knots.shape[0] < 2:
+        raise ValueError(f"poses: expected shape (K+1, N) with K >= 1 moves, got {knots.shape}")
     for nm, val in (("move_time", move_time), ("hold_time", hold_time)):
         if not np.isfinite(val) or val < 0 or (nm == "move_time" and val == 0):
             raise ValueError(f"{nm}: must be finite and {'positive' if nm == 'move_time' else '>= 0'}, got {val}")
@@ -131,17 +132,17 @@ def cycloidal_path(poses: Sequence, move_time: float, hold_time: float = 0.0, *,
     end_hold = hold_time if end_hold is None else end_hold
     if start_hold < 0 or end_hold < 0:
         raise ValueError("start_hold/end_hold: must be >= 0")
-    knots_t, knots_q = [0.0], [poses[0]]
+    knots_t, knots_q = [0.0], [knots[0]]
 
     def add(duration, pose):
         if duration > 0:
             knots_t.append(knots_t[-1] + duration)
             knots_q.append(pose)
 
-    add(start_hold, poses[0])
-    for k in range(1, poses.shape[0]):
-        add(move_time, poses[k])
-        add(end_hold if k == poses.shape[0] - 1 else hold_time, poses[k])
+    add(start_hold, knots[0])
+    for k in range(1, knots.shape[0]):
+        add(move_time, knots[k])
+        add(end_hold if k == knots.shape[0] - 1 else hold_time, knots[k])
     return Trajectory(np.array(knots_t), np.array(knots_q), name)
 
 

@@ -112,7 +112,7 @@ def paper_model() -> tuple[str, ...]:
     return tuple(c.name for c in _REGISTRY.values() if c.baseline)
 
 
-def make_effect(name: str, **kwargs) -> Effect:
+def make_effect(name: str, **kwargs: Any) -> Effect:
     """The effect called ``name`` (vocabulary) with its defaults overridden by ``kwargs``."""
     cls = get(name)
     try:
@@ -131,7 +131,7 @@ class Effects:
 
     __slots__ = ("_by_name",)
 
-    def __init__(self, **by_name: Effect | None):
+    def __init__(self, **by_name: Effect | None) -> None:
         items = {}
         for name, v in by_name.items():
             cls = get(name)
@@ -210,7 +210,7 @@ class Effects:
         """s by which a camera frame lags its time stamp (``effects.camera_delay`` is the effect)."""
         return float(sum(e.camera_delay for e in self.active()))
 
-    def replace(self, **kw) -> "Effects":
+    def replace(self, **kw: Effect | None) -> "Effects":
         return Effects(**{**self._by_name, **kw})
 
     def to_dict(self) -> dict[str, dict]:

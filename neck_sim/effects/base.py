@@ -91,20 +91,21 @@ class Effect:
                                  f"(0-based; this neck has N = {n_j} joints)")
         mag = getattr(self, self.magnitude_field, None) if self.magnitude_field else None
         if isinstance(mag, tuple):
-            want = len(self.cables) if getattr(self, "cables", None) is not None else n_c
+            cables = getattr(self, "cables", None)
+            want = len(cables) if cables is not None else n_c
             if len(mag) != want:
                 raise ValueError(f"{self.name}.{self.magnitude_field}: {len(mag)} values for {want} affected cables")
 
     def per_cable(self, n_cables: int) -> np.ndarray:
         """The magnitude as an (n_cables,) array, zero on unaffected cables."""
-        mag = getattr(self, self.magnitude_field)
+        mag, cables = getattr(self, self.magnitude_field), getattr(self, "cables")   # per-cable effects declare cables
         out = np.zeros(n_cables)
-        idx = np.arange(n_cables) if self.cables is None else np.asarray(self.cables)
+        idx = np.arange(n_cables) if cables is None else np.asarray(cables)
         out[idx] = mag
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        d = {"name": self.name}
+        d: dict[str, Any] = {"name": self.name}
         for f in fields(self):
             v = getattr(self, f.name)
             d[f.name] = list(v) if isinstance(v, tuple) else v
@@ -128,7 +129,7 @@ class Effect:
         (``kind = "encoder"``; the plant keeps the motor's lead, see :mod:`neck_sim.effects.backlash`)."""
         return np.zeros(n_cables)
 
-    def setup_mujoco(self, model, data, index) -> None:
+    def setup_mujoco(self, model: Any, data: Any, index: Any) -> None:
         """Edit the compiled MuJoCo model/data (``index``: :func:`neck_sim.mjcf.model_index`);
         called after every reset, so it must set values, not accumulate them."""
 
@@ -141,11 +142,11 @@ class MotorEffect(Effect):
 
     kind: ClassVar[str] = "motor"
 
-    def regressor(self, theta_dot, tension=None):
+    def regressor(self, theta_dot: np.ndarray, tension: np.ndarray | None = None) -> np.ndarray:
         """d force / d magnitude, (..., C)."""
         raise NotImplementedError
 
-    def motor_force(self, theta_dot, tension=None):
+    def motor_force(self, theta_dot: np.ndarray, tension: np.ndarray | None = None) -> np.ndarray:
         """Force (N) along each cable resisting the motor speed ``theta_dot`` (..., C) rad/s."""
         td = np.asarray(theta_dot, dtype=float)
         return self.per_cable(td.shape[-1]) * self.regressor(td, tension)

@@ -23,6 +23,7 @@ import json
 import os
 import warnings
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 from mcap.reader import SeekingReader
@@ -135,8 +136,9 @@ def _to_ns(value: float | None, name: str) -> int | None:
     return min(int(round(min(v, 1e12) * 1e9)), _MAX_NS)
 
 
-def read_log(path, *, start: float | None = None, end: float | None = None, topics=None,
-             require=("motors",), accept_out_of_range_forces: bool = False) -> Log:
+def read_log(path: str | os.PathLike, *, start: float | None = None, end: float | None = None,
+             topics: Iterable[str] | None = None, require: Iterable[str] = ("motors",),
+             accept_out_of_range_forces: bool = False) -> Log:
     """Read a contract log into numpy arrays.
 
     Args:

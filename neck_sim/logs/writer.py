@@ -25,8 +25,10 @@ import platform
 import sys
 import types
 import weakref
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import zstandard
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
@@ -136,9 +138,9 @@ class LogWriter:
     ValueError naming the topic and field.
     """
 
-    def __init__(self, path, params: NeckParams | None = None, *, mjcf_xml: str | None = None,
+    def __init__(self, path: str | os.PathLike, params: NeckParams | None = None, *, mjcf_xml: str | None = None,
                  run_info: dict | None = None, visualization_rate_hz: float = 30.0,
-                 chunk_size: int = 512 * 1024):
+                 chunk_size: int = 512 * 1024) -> None:
         self.path = os.fspath(path)
         self.params = default_params(3) if params is None else params
         self._n = self.params.n_joints
@@ -207,25 +209,26 @@ class LogWriter:
         _drop_file(self._fh, self._tmp)
 
     # -- contract topics ---------------------------------------------------------------------
-    def motors(self, t: float, theta, force) -> None:
+    def motors(self, t: float, theta: npt.ArrayLike, force: npt.ArrayLike) -> None:
         """Encoder angles theta (m,) rad and commanded forces (m,) N at time t (s); m = params.n_cables."""
         self._write(TOPIC_BY_NAME["motors"], t, (theta, force))
 
-    def camera(self, t: float, alpha) -> None:
+    def camera(self, t: float, alpha: npt.ArrayLike) -> None:
         """Joint angles from video, alpha (N,) rad."""
         ns = self._write(TOPIC_BY_NAME["camera"], t, (alpha,))
         self._visualize("camera", ns, alpha)
 
-    def reference(self, t: float, alpha_d) -> None:
+    def reference(self, t: float, alpha_d: npt.ArrayLike) -> None:
         """Desired joint angles alpha_d (N,) rad."""
         self._write(TOPIC_BY_NAME["reference"], t, (alpha_d,))
 
-    def estimate(self, t: float, alpha_hat) -> None:
+    def estimate(self, t: float, alpha_hat: npt.ArrayLike) -> None:
         """Online estimate alpha_hat (N,) rad."""
         ns = self._write(TOPIC_BY_NAME["estimate"], t, (alpha_hat,))
         self._visualize("estimate", ns, alpha_hat)
 
-    def truth(self, t: float, alpha, alpha_dot, tension, elongation) -> None:
+    def truth(self, t: float, alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, tension: npt.ArrayLike,
+              elongation: npt.ArrayLike) -> None:
         """Simulation truth: alpha, alpha_dot (N,), tension (m,) N, elongation (m,) m."""
         ns = self._write(TOPIC_BY_NAME["truth"], t, (alpha, alpha_dot, tension, elongation))
         self._visualize("truth", ns, alpha)
@@ -280,7 +283,7 @@ class LogWriter:
                 self._flush_pending(pending)
         return ns
 
-    def write_batch(self, name: str, t, *fields) -> None:
+    def write_batch(self, name: str, t: npt.ArrayLike, *fields: npt.ArrayLike) -> None:
         """Many samples of one contract topic at once: ``t`` (T,) s increasing, then the topic's
         fields in contract order, each (T, n).  Same checks as the per-sample methods."""
         spec = TOPIC_BY_NAME[name]
@@ -418,7 +421,8 @@ def topic_layout(spec: TopicSpec, n_joints: int, n_cables: int) -> tuple[tuple[i
     """(field lengths, payload template) of a contract topic: ``{"t": .., "theta": [..], ..}``, the
     values of a message being its row ``[t, *field 1, *field 2, ...]``."""
     lengths = spec.lengths(n_joints, n_cables)
-    doc, column = {"t": jsonrecords.Slot(0)}, 1
+    doc: dict[str, Any] = {"t": jsonrecords.Slot(0)}
+    column = 1
     for f, k in zip(spec.field_names, lengths):
         doc[f] = [jsonrecords.Slot(column + i) for i in range(k)]
         column += k
