@@ -17,13 +17,12 @@ refusing one it cannot before any simulation.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple, Sequence, cast
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
     from controllers.underactuated import ReachablePath
-    from neck_sim.params import Routing
     from neck_sim.trajectory import Trajectory
 
 __all__ = ["CONTROLLERS", "TRAJECTORY_NAMES", "LQR_FROM_JOINTS", "PLANT_TIMESTEP", "Choice", "choose_controller",
@@ -66,7 +65,7 @@ def plant_timestep(controller: str) -> float | None:
 
 
 def _paper_routing(params: NeckParams) -> bool:
-    return cast("Routing", params.routing).is_paper_kind(params.n_joints)      # __post_init__ sets it
+    return params.routing.is_paper_kind(params.n_joints)
 
 
 def choose_controller(params: NeckParams, requested: str | None = None, *, laws: Sequence[int] | None = None,

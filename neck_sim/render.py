@@ -27,7 +27,7 @@ import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
-from typing import TYPE_CHECKING, NamedTuple, Sequence, cast
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
@@ -36,8 +36,6 @@ from neck_sim.params import NeckParams, default_params
 
 if TYPE_CHECKING:
     import mujoco
-
-    from neck_sim.params import Routing
 
 __all__ = ["RenderError", "Framing", "cable_colours", "figure10_poses", "posed_data", "framing", "render_poses",
            "compose_figure", "render_figure10", "BACKENDS", "FIGURE10_TIMES"]
@@ -166,7 +164,7 @@ def _restyle(model, params: NeckParams) -> None:
     import mujoco
     T, G = mujoco.mjtObj.mjOBJ_TENDON, mujoco.mjtObj.mjOBJ_GEOM
     n = params.n_joints
-    for j, rgb in enumerate(cable_colours(cast("Routing", params.routing).sides), start=1):   # set in __post_init__
+    for j, rgb in enumerate(cable_colours(params.routing.sides), start=1):
         t = mujoco.mj_name2id(model, T, f"c{j}")
         model.tendon_rgba[t] = (*rgb, 1.0)
         model.tendon_width[t] = _CABLE_WIDTH
@@ -309,7 +307,7 @@ def _fmt_pose(alpha: np.ndarray) -> str:
 def _legend(model, params: NeckParams) -> list[tuple[str, tuple]]:
     import mujoco
     out = []
-    for j, side in enumerate(cast("Routing", params.routing).sides, start=1):        # set in __post_init__
+    for j, side in enumerate(params.routing.sides, start=1):
         t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"c{j}")
         out.append((f"cable {j} ({side})", tuple(model.tendon_rgba[t][:3])))
     t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, "j1_spring_left")

@@ -25,7 +25,7 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple, cast
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -136,7 +136,7 @@ def _geom(params: NeckParams) -> tuple[float, float, float]:
 
 def _cases(params: NeckParams) -> np.ndarray:
     """Segment kind of every (cable j, joint i), (m, N) int (:meth:`Routing.segment_cases`)."""
-    return cast("Routing", params.routing).segment_cases(params.n_joints)     # __post_init__ sets it
+    return params.routing.segment_cases(params.n_joints)
 
 
 def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:

@@ -8,7 +8,6 @@ motors allow is l_c - l_c0 = x_c - (r_d/R) theta.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -19,9 +18,6 @@ from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
 from neck_sim.params import NeckParams
 from neck_sim.routing import SEG_RIGHT_END, SEG_RIGHT_STRUT
-
-if TYPE_CHECKING:
-    from neck_sim.params import Routing
 
 __all__ = ["UnreachableError", "estimate_alpha_triangular", "pinv_increment", "pinv_increment_kernel",
            "cable_stretch_at_f_max",
@@ -51,7 +47,7 @@ def estimate_alpha_triangular(theta: npt.ArrayLike, params: NeckParams, elongati
     """
     n = params.n_joints
     act = params.actuation
-    if not cast("Routing", params.routing).is_paper_kind(n):      # __post_init__ sets it
+    if not params.routing.is_paper_kind(n):
         raise ValueError("estimate_alpha_triangular: eq (33) needs the paper's routing (right cable j strut-routed "
                          "below joint j and attached at D_j, plus one long left cable); this neck's routing differs")
     th = check_cables(theta, n + 1, "theta")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from typing import TYPE_CHECKING, Sequence, cast
+from typing import TYPE_CHECKING, Sequence
 
 from neck_sim import params as P
 
@@ -66,8 +66,8 @@ def check_params_fit_log(params: P.NeckParams, log: Log, path: str | os.PathLike
                                 ("n_cables", params.n_cables, log_p.n_cables)):
         if mine != theirs:
             raise ValueError(f"--params {path}: {field} = {mine}, the log's neck record has {theirs}")
-    mine_cases = cast("P.Routing", params.routing).segment_cases(params.n_joints)      # __post_init__ sets both
-    if mine_cases.tolist() != cast("P.Routing", log_p.routing).segment_cases(log_p.n_joints).tolist():
+    mine_cases = params.routing.segment_cases(params.n_joints)
+    if mine_cases.tolist() != log_p.routing.segment_cases(log_p.n_joints).tolist():
         raise ValueError(f"--params {path}: routing.cables routes the cables differently from the log's neck record "
                          f"(its 'routing' key); use the parameter file the log was recorded with")
 

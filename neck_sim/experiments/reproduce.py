@@ -247,6 +247,7 @@ def _reproduce(settings: ReproduceSettings, pool) -> Reproduction:
 
     # 4. identification --------------------------------------------------------------------------
     id_log_path = specs[0].log_path
+    assert id_log_path is not None          # paper_runs logs every run into the output folder
     with st.stage("identification (section 5)"):
         id_log = read_log(id_log_path, topics=("motors", "camera", "reference"))
         ident = identify_log(id_log)
