@@ -91,8 +91,9 @@ class RunResult:
         atomic_write_json(path, self.summary())
 
 
-def compute_metrics(t: np.ndarray, alpha_d: np.ndarray, alpha_hat: np.ndarray, alpha: np.ndarray, tension: np.ndarray,
-                    force: np.ndarray, saturated: np.ndarray, camera_t: np.ndarray, camera_alpha: np.ndarray) -> Metrics:
+def compute_metrics(t: np.ndarray, alpha_d: np.ndarray, alpha_hat: np.ndarray, alpha: np.ndarray,
+                    tension: np.ndarray, force: np.ndarray, saturated: np.ndarray, camera_t: np.ndarray,
+                    camera_alpha: np.ndarray) -> Metrics:
     """Metrics of :class:`Metrics` from the recorded arrays (shapes as in :class:`RunResult`)."""
     deg = np.degrees
     track = np.abs(alpha_hat - alpha_d)
