@@ -31,8 +31,7 @@ _MYPY = "mypy reports errors in its body (Optional arrays set in __init__): its 
 UNTYPED_SOURCES = {
     "identification.diagnosis.pipeline": _DIAGNOSIS, "identification.diagnosis.result": _DIAGNOSIS,
     "identification.diagnosis.settings": _DIAGNOSIS,
-    "neck_sim.batch": _MYPY, "neck_sim.recorder": _MYPY, "neck_sim.replay": _MYPY, "neck_sim.logs.reader": _MYPY,
-    "neck_sim.logs.contract": _MYPY, "controllers.closed_loop": _MYPY,
+    "neck_sim.batch": _MYPY, "neck_sim.recorder": _MYPY, "neck_sim.replay": _MYPY, "controllers.closed_loop": _MYPY,
 }
 
 

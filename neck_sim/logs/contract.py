@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -155,7 +156,7 @@ def neck_metadata(params: NeckParams) -> dict[str, str]:
 
 def _routing_from_metadata(meta: dict[str, str], n: int) -> Routing:
     """The routing of a ``neck`` record: its ``routing`` key, else the paper's (N + 1 cables)."""
-    m = n + 1
+    m: Any = n + 1                 # whatever the record holds, until checked below
     if "n_cables" in meta:
         try:
             m = json.loads(meta["n_cables"])
@@ -192,7 +193,7 @@ def params_from_metadata(meta: dict[str, str]) -> NeckParams:
     missing = [k for k, (_, req) in _METADATA_KEYS.items() if req and k not in meta]
     if missing:
         raise LogError(f"metadata record {NECK_RECORD!r}: missing required key(s) {', '.join(missing)}")
-    values = {}
+    values: dict[str, Any] = {}
     for key, (path, _) in _METADATA_KEYS.items():
         if key not in meta:
             continue

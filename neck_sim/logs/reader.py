@@ -23,7 +23,7 @@ import json
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Iterable
+from typing import Any, Iterable
 
 import numpy as np
 from mcap.reader import SeekingReader
@@ -115,7 +115,7 @@ class Log:
     def n_joints(self) -> int:
         return self.params.n_joints
 
-    def run_value(self, key: str):
+    def run_value(self, key: str) -> Any:
         """A ``run`` record value decoded from JSON (the raw string when it is not JSON; None if absent)."""
         raw = self.run_info.get(key)
         if raw is None:
@@ -196,7 +196,7 @@ def read_log(path: str | os.PathLike, *, start: float | None = None, end: float 
             raise LogError(f"{path}: {exc}") from None
         n = params.n_joints
 
-        channels = {} if summary is None else {c.topic: c for c in summary.channels.values()}
+        channels: dict[str, Any] = {} if summary is None else {c.topic: c for c in summary.channels.values()}
         counts = {}
         if summary is not None and summary.statistics is not None:
             by_id = summary.statistics.channel_message_counts
@@ -219,11 +219,13 @@ def read_log(path: str | os.PathLike, *, start: float | None = None, end: float 
                                "the contract says 'json'")
         if summary is not None:
             ids = {channels[s.topic].id: s.topic for s in present}
-            payloads = collect_indexed(fh, path, summary, ids, start_ns, end_ns)
-            if payloads is None:           # no message index: let the mcap reader walk the chunks
-                payloads = collect_linear(reader, path, [s.topic for s in present], start_ns, end_ns)
+            indexed = collect_indexed(fh, path, summary, ids, start_ns, end_ns)
+            # None: no message index, so the mcap reader walks the chunks
+            payloads = indexed if indexed is not None else collect_linear(reader, path, [s.topic for s in present],
+                                                                          start_ns, end_ns)
 
-        samples, notes = {}, ()
+        samples = {}
+        notes: tuple[str, ...] = ()
         for spec in present:
             log_times, data = payloads.get(spec.topic) or Payloads.concat([], [])
             samples[spec.name] = _decode(path, spec, n, params.n_cables, log_times, data)
@@ -269,7 +271,7 @@ def _span_text(summary) -> str:
 
 # -- decoding --------------------------------------------------------------------------------------
 
-_TEMPLATES: dict[tuple[str, int], tuple[bytes, bool, int]] = {}
+_TEMPLATES: dict[tuple[str, int, int], tuple[bytes, bool, int]] = {}
 # Structure characters and key letters become spaces; digits, signs, '.', 'e', 'E' and ',' stay.
 _TO_NUMBERS = bytes(c if chr(c) in "0123456789.+-eE," else ord(" ") for c in range(256))
 
