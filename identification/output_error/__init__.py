@@ -1,0 +1,1 @@
+"""Output-error identification (filled in below)."""
