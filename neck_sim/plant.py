@@ -51,6 +51,7 @@ import ctypes
 import logging
 import math
 import os
+import re
 import warnings
 import weakref
 from collections.abc import Mapping, Set as AbstractSet
@@ -69,7 +70,7 @@ from neck_sim.mjcf import DEFAULT_TIMESTEP, build_xml, model_index, pose_qpos
 from neck_sim.native import MAX_CABLES, NativeBuildError, PlantStruct
 from neck_sim.params import NeckParams, default_params
 
-__all__ = ["Plant", "PlantBatch", "truth_columns", "clip_forces", "Truth", "PlantDivergedError", "set_backend", "get_backend",
+__all__ = ["Plant", "PlantBatch", "INTEGRATORS", "truth_columns", "clip_forces", "Truth", "PlantDivergedError", "set_backend", "get_backend",
            "native_available", "NativeBuildError", "MAX_CABLES"]
 
 
@@ -246,6 +247,28 @@ def native_available() -> bool:
 
 # ----------------------------------------------------------------------------------------- plant
 
+#: MuJoCo integrators a plant may be fixed to: those that treat the cable damping (the velocity
+#: derivative of the actuator biases) implicitly; ``euler`` would take it explicitly (unstable for
+#: c_a = 50 N s/m on 20 g bars at dt = 0.5 ms) and ``rk4`` has no split mj_step1/mj_step2.
+INTEGRATORS = ("implicitfast", "implicit", "discrete")
+
+
+def _check_integrator(integrator) -> str:
+    if not isinstance(integrator, str) or integrator not in INTEGRATORS:
+        raise ValueError(f"integrator: expected None or one of {', '.join(map(repr, INTEGRATORS))} "
+                         f"(integrators that treat the cable damping implicitly), got {integrator!r}")
+    return integrator
+
+
+def _with_integrator(xml: str, integrator: str) -> str:
+    """The MJCF ``xml`` with its ``<option integrator=...>`` replaced (one definition of the model
+    text: the plant's ``xml`` is what it compiled)."""
+    out, count = re.subn(r'(<option\b[^>]*\bintegrator=")[a-z0-9]+(")', rf"\g<1>{integrator}\g<2>", xml, count=1)
+    if count != 1:
+        raise RuntimeError("plant: the MJCF has no <option integrator=...> to set")
+    return out
+
+
 # Warnings after which MuJoCo's state is no longer a valid neck (it resets itself on some of them).
 _FATAL_WARNINGS = tuple(int(getattr(mujoco.mjtWarning, w)) for w in
                         ("mjWARN_INERTIA", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC"))
@@ -255,14 +278,18 @@ class Plant:
     """The simulated neck (interfaces.md, ``neck_sim.plant``).
 
     ``Plant(params=None, effects=None, seed=0, timestep=None, *, rigid_cables=False,
-    backend=None)``: ``params`` are the plant's constants (default ``default_params(3)``),
-    ``effects`` the hidden extra effects (off by default), ``seed`` seeds the camera noise,
-    ``timestep`` the physics step (default :data:`neck_sim.mjcf.DEFAULT_TIMESTEP`; must divide
-    the control period).
+    backend=None, integrator=None)``: ``params`` are the plant's constants (default
+    ``default_params(3)``), ``effects`` the hidden extra effects (off by default), ``seed`` seeds
+    the camera noise, ``timestep`` the physics step (default
+    :data:`neck_sim.mjcf.DEFAULT_TIMESTEP`; must divide the control period).  ``integrator``:
+    None lets :func:`neck_sim.mjcf.integrator_for` choose from the cable damping c_a; one of
+    :data:`INTEGRATORS` fixes MuJoCo's integrator whatever c_a is (a fit over c_a needs the
+    simulated response continuous in c_a, so it chooses once per fit).
     """
 
     def __init__(self, params: NeckParams | None = None, effects: Effects | None = None, seed: int = 0,
-                 timestep: float | None = None, *, rigid_cables: bool = False, backend: str | None = None):
+                 timestep: float | None = None, *, rigid_cables: bool = False, backend: str | None = None,
+                 integrator: str | None = None):
         self.params = default_params(3) if params is None else params
         if not isinstance(self.params, NeckParams):
             raise ValueError(f"params: expected NeckParams, got {type(self.params).__name__}")
@@ -282,6 +309,8 @@ class Plant:
             if moot:
                 raise ValueError(f"effects {moot}: act on the cable elongation or tension law, which rigid "
                                  "cables do not have")
+        if integrator is not None:
+            _check_integrator(integrator)
         dt = DEFAULT_TIMESTEP if timestep is None else float(timestep)
         period = 1.0 / self.params.control.rate_hz
         nsub = int(round(period / dt)) if (math.isfinite(dt) and dt > 0) else 0
@@ -293,6 +322,8 @@ class Plant:
         self.period = period
         self.substeps = nsub
         self.xml = build_xml(self.true_params, timestep=dt, rigid_cables=self.rigid_cables)
+        if integrator is not None:
+            self.xml = _with_integrator(self.xml, integrator)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         self._fatal_warnings = tuple(self.data.warning[w] for w in _FATAL_WARNINGS)   # live views, cheap to poll
@@ -437,6 +468,12 @@ class Plant:
         if self._batch is None:
             return int(self._solo.k[0])
         return int(self._batch.k[self._batch.plants.index(self)])
+
+    @property
+    def integrator(self) -> str:
+        """MuJoCo's integrator of this plant, as the compiled model has it: ``implicitfast``,
+        ``implicit`` or ``discrete``."""
+        return mujoco.mjtIntegrator(self.model.opt.integrator).name.removeprefix("mjINT_").lower()
 
     @property
     def backend(self) -> str:
