@@ -12,46 +12,22 @@ kept in ``rejected``.
 
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from identification.output_error.intervals import Z95, jacobian_covariance
-from identification.output_error.misfit import MISFIT_RATIO, cost_ratios, misfit_lines
+from identification.output_error.misfit import cost_ratios, misfit_lines
+from identification.output_error.settings import OutputErrorSettings
 from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residuals
-from identification.output_error import rollouts as engine
+from identification.output_error import _serial, rollouts as engine
 
 __all__ = ["OutputErrorSettings", "OutputErrorResult", "fit"]
 
 #: Smallest parameter scale per group (x_scale and finite-difference step), in the group's unit.
 SCALE_FLOOR = {"f_s": 1.0, "k": 100.0, "lambda": 1.0, "c_a": 10.0}
-INTEGRATORS = ("implicitfast", "discrete", "implicit", "euler", "rk4")
-
-
-@dataclass(frozen=True)
-class OutputErrorSettings:
-    """``integrator``: MuJoCo integrator for every rollout of the fit (None: ``integrator_for`` at
-    the start point); ``max_evaluations``: cost evaluations of the trust region (each one rollout
-    per experiment, besides the Jacobians' p); ``rel_step``: finite-difference step relative to
-    the parameter scale; ``xtol``/``ftol``: scipy's relative tolerances; ``misfit_ratio``: see
-    :mod:`identification.output_error.misfit`."""
-
-    integrator: str | None = None
-    max_evaluations: int = 12
-    rel_step: float = 1e-5
-    xtol: float = 1e-7
-    ftol: float = 1e-9
-    misfit_ratio: float = MISFIT_RATIO
-
-    def __post_init__(self):
-        if self.integrator is not None and self.integrator not in INTEGRATORS:
-            raise ValueError(f"integrator: unknown {self.integrator!r} (known: {', '.join(INTEGRATORS)})")
-        if not (isinstance(self.max_evaluations, int) and self.max_evaluations >= 1):
-            raise ValueError(f"max_evaluations: must be a positive integer, got {self.max_evaluations!r}")
-        for name in ("rel_step", "xtol", "ftol", "misfit_ratio"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name}: must be positive, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +55,10 @@ class OutputErrorResult:
     logs: tuple
     notes: tuple = ()
 
+    @property
+    def converged(self) -> bool:
+        return not any(n.startswith("NOT CONVERGED") for n in self.notes)
+
     def group(self, symbol: str, attr: str = "value") -> np.ndarray:
         idx = [i for i, n in enumerate(self.names) if n.split("(")[0] == symbol]
         if not idx:
@@ -94,7 +74,8 @@ class OutputErrorResult:
         return {"parameters": groups, "names": list(self.names), "cost_ratio": self.cost_ratio,
                 "samples": self.n_samples, "misfit": list(self.misfit), "rejected_steps": list(self.rejected),
                 "rollouts": self.rollouts, "iterations": self.iterations, "cpu_s": self.cpu_s,
-                "integrator": self.integrator, "status": self.status, "logs": list(self.logs),
+                "integrator": self.integrator, "status": self.status, "converged": self.converged,
+                "logs": list(self.logs),
                 "notes": list(self.notes),
                 "ci95_method": "1.96 sigma, sigma from s^2 (J^T J)^-1 at the optimum (J of the noise-weighted "
                                "residuals, s^2 their variance)"}
@@ -118,8 +99,8 @@ def choose_integrator(layout: Layout, x0, settings: OutputErrorSettings) -> str:
 class _Evaluator:
     """Rollouts of parameter vectors over every experiment, counted, with divergences named."""
 
-    def __init__(self, experiments, layout: Layout, integrator: str, bar):
-        self.experiments, self.layout, self.integrator, self.bar = experiments, layout, integrator, bar
+    def __init__(self, measured, layout: Layout, integrator: str, bar):
+        self.measured, self.layout, self.integrator, self.bar = measured, layout, integrator, bar
         self.sigmas = noise_sigmas(layout.params)
         self.rollouts, self.rejected = 0, []
 
@@ -135,28 +116,27 @@ class _Evaluator:
                 reasons[k] = f"not a valid plant: {exc}"
         ok = [k for k in range(K) if plants[k] is not None]
         runs = [[] if plants[k] is not None else None for k in range(K)]
-        for exp in self.experiments:
-            out = engine.rollout([plants[k][0] for k in ok], exp.force, alpha0=exp.alpha0,
-                                 integrator=self.integrator, effects=[plants[k][1] for k in ok])
+        for meas in self.measured:
+            out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
             self.rollouts += len(ok)
             for i, k in enumerate(ok):
                 if runs[k] is None:
                     continue
                 if out.diverged[i]:
-                    runs[k], reasons[k] = None, f"{exp.name}: {out.reason[i]}"
+                    runs[k], reasons[k] = None, f"{meas.name}: {out.reasons[i]}"
                 else:
-                    runs[k].append((out.theta[i], out.alpha[i]))
+                    runs[k].append((out.encoders[i], out.camera_alpha[i]))
         if self.bar is not None:
-            self.bar.update(len(ok) * len(self.experiments))
+            self.bar.update(len(ok) * len(self.measured))
         return runs, reasons
 
     def residual(self, run) -> dict:
-        return residuals(self.experiments, run, self.sigmas)
+        return residuals(self.measured, run, self.sigmas)
 
 
-def fit(experiments, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
+def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
         progress: bool = False, notes=()) -> OutputErrorResult:
-    """Fit ``layout``'s parameters to ``experiments`` (one parameter set for all) from ``x0``.
+    """Fit ``layout``'s parameters to ``measured`` (one parameter set for all) from ``x0``.
 
     Raises ValueError when the start point itself cannot be simulated (a diverging start is no
     fit); later diverging candidates are rejected steps."""
@@ -170,7 +150,7 @@ def fit(experiments, layout: Layout, x0, settings: OutputErrorSettings | None = 
     cpu0 = time.process_time()
     last = {}
     with tqdm(desc="output-error fit", unit="rollout", disable=not progress, leave=False) as bar:
-        ev = _Evaluator(experiments, layout, integrator, bar)
+        ev = _Evaluator(measured, layout, integrator, bar)
 
         def fun(x):
             key = x.tobytes()
@@ -185,7 +165,7 @@ def fit(experiments, layout: Layout, x0, settings: OutputErrorSettings | None = 
                     last[key] = np.concatenate([ev.residual(run)[k] for k in SIGNALS])
             r = last[key]
             if r is None:
-                n = sum(e.theta.size + e.camera_alpha.size for e in experiments)
+                n = sum(e.theta.size + e.camera_alpha.size for e in measured)
                 return np.full(n, np.nan)
             bar.set_postfix(cost=f"{0.5 * float(r @ r):.4g}")
             return r
@@ -214,26 +194,39 @@ def fit(experiments, layout: Layout, x0, settings: OutputErrorSettings | None = 
         sol = least_squares(fun, x0, jac=jac, bounds=(layout.lower, layout.upper), x_scale=scale, method="trf",
                             max_nfev=s.max_evaluations, xtol=s.xtol, ftol=s.ftol, gtol=1e-12)
     r = fun(sol.x)
-    res = _split(r, experiments)
+    res = _split(r, measured)
     cov, _ = jacobian_covariance(sol.jac, r)
     sigma = np.sqrt(np.diag(cov))
     ratios = cost_ratios(res)
     notes = list(notes)
     from neck_sim.mjcf import integrator_for
 
+    if sol.status == 0:
+        notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} cost evaluations (--max-evaluations); "
+                     "the values and any misfit below are those of an unfinished fit")
     wanted = integrator_for(layout.plant(sol.x)[0])
     if wanted != integrator:
         notes.append(f"integrator: the fit ran on {integrator} (chosen at the start point); at the fitted values the "
                      f"plant would choose {wanted}: refit with --integrator {wanted} to compare")
     return OutputErrorResult(layout.names, layout.units, x0, sol.x, sigma, Z95 * sigma, cov, ratios,
                              {k: int(v.size) for k, v in res.items()},
-                             tuple(misfit_lines(ratios, [e.name for e in experiments], s.misfit_ratio)),
+                             tuple(misfit_lines(ratios, [e.name for e in measured], s.misfit_ratio)),
                              tuple(ev.rejected), ev.rollouts, int(sol.njev or 0), time.process_time() - cpu0,
-                             integrator, str(sol.message), tuple(e.name for e in experiments), tuple(notes))
+                             integrator, str(sol.message), tuple(e.name for e in measured), tuple(notes))
 
 
-def _split(r, experiments) -> dict:
-    n_enc = sum(e.theta.size for e in experiments)
+def _rollout(replay, params, effects, integrator):
+    """The parallel engine when it can return unquantised motor angles, else the serial one."""
+    if _UNQUANTISED:
+        return engine.rollout(replay, params, effects, integrator=integrator, quantise=False)
+    return _serial.rollout(replay, params, effects, integrator=integrator)
+
+
+_UNQUANTISED = "quantise" in inspect.signature(engine.rollout).parameters
+
+
+def _split(r, measured) -> dict:
+    n_enc = sum(e.theta.size for e in measured)
     return {"encoders": r[:n_enc], "camera": r[n_enc:]}
 
 

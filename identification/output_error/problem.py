@@ -1,6 +1,6 @@
 """The output-error problem: experiments, the parameter vector and the noise-weighted residuals.
 
-An :class:`Experiment` is one log's measured topics: the commanded forces that drive the
+A :class:`Measured` is one log's measured topics: the commanded forces that drive the
 re-simulation, the encoders and the camera frames the simulation is compared with.  A
 :class:`Layout` maps a parameter vector x to the plant: per cable f_s (eq 37), k, lambda, c_a
 (eq 54), and the magnitudes of an extended model's effects.  :func:`residuals` stacks, per
@@ -21,9 +21,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.output_error.rollouts import Experiment
 from neck_sim.params import NeckParams, to_dict
 
-__all__ = ["Experiment", "Layout", "noise_sigmas", "residuals", "SIGNALS", "same_neck"]
+__all__ = ["Measured", "Layout", "noise_sigmas", "residuals", "SIGNALS", "same_neck"]
 
 #: The per-cable groups of the base model: (symbol, unit, NeckParams field, lower bound).
 GROUPS = (("f_s", "N", ("friction", "f_s"), 0.0), ("k", "N/m", ("cables", "k"), 1.0),
@@ -38,21 +39,22 @@ def noise_sigmas(params: NeckParams) -> dict:
 
 
 @dataclass(frozen=True, eq=False)
-class Experiment:
-    """One log: motor sample times ``t`` (T,) s, commanded ``force`` (T, m) N, ``theta`` (T, m)
-    rad encoders, camera frames ``camera_t`` (F,) s and ``camera_alpha`` (F, N) rad inside
-    [t[0], t[-1]], the start pose ``alpha0`` (N,) rad and how it was found (``start_pose``:
-    "straight" when the frames of the first ``start_window_s`` are consistent with the straight
-    pose, else "camera", their mean) and the log's ``name``."""
+class Measured:
+    """One log: what the plant replays (``replay``, a :class:`rollouts.Experiment`: forces,
+    control period, camera frame times since the first motor sample, start pose) and what it is
+    compared with: ``theta`` (T, m) rad encoders and ``camera_alpha`` (F, N) rad frames;
+    ``start_pose`` says where the start pose came from ("reference": the log's first
+    /neck/reference pose, the closed loop starts there; "straight": no reference, and the first
+    frames are consistent with the straight pose; "camera": their mean)."""
 
-    name: str
-    t: np.ndarray
-    force: np.ndarray
+    replay: Experiment
     theta: np.ndarray
-    camera_t: np.ndarray
     camera_alpha: np.ndarray
-    alpha0: np.ndarray
-    start_pose: str = "straight"
+    start_pose: str
+
+    @property
+    def name(self) -> str:
+        return self.replay.name
 
     @classmethod
     def from_log(cls, log, params: NeckParams, *, name: str | None = None, start_window_s: float = 0.1):
@@ -70,19 +72,25 @@ class Experiment:
             raise ValueError(f"{name}: motor samples every {np.median(dt) if dt.size else float('nan'):.6g} s "
                              f"(not uniformly), but re-simulation needs one per control period "
                              f"({period:.6g} s, control.rate_hz)")
-        inside = (cam.t >= m.t[0]) & (cam.t <= m.t[-1])
-        first = cam.t[inside] <= m.t[0] + start_window_s
-        if not first.any():
-            first = np.zeros(inside.sum(), bool)
+        tc = cam.t - m.t[0]
+        inside = (tc > 0) & (tc <= m.t.size * period)
+        if not inside.any():
+            raise ValueError(f"{name}: no camera frame inside the motor samples' time span")
+        ref = getattr(log, "reference", None)
+        if ref is not None and ref.t.size:
+            alpha0, how = np.asarray(ref.alpha_d[0], float), "reference"
+        else:
+            first = tc[inside] <= start_window_s
             first[0] = True
-        alpha0 = cam.alpha[inside][first].mean(axis=0)
-        # an open-loop re-simulation is sensitive to its start pose (0.1 deg at the base joint: 0.06 rad
-        # of encoder drift after 5 s); runs start straight (paper §6), so frames consistent with that
-        # (within 3 standard errors) start it exactly there
-        straight = bool(np.all(np.abs(alpha0) <= 3.0 * params.sensors.camera_noise / np.sqrt(first.sum())))
-        return cls(name, m.t - m.t[0], np.asarray(m.force, float), np.asarray(m.theta, float),
-                   cam.t[inside] - m.t[0], cam.alpha[inside], np.zeros_like(alpha0) if straight else alpha0,
-                   "straight" if straight else "camera")
+            alpha0 = cam.alpha[inside][first].mean(axis=0)
+            # an open-loop re-simulation is sensitive to its start pose (0.1 deg at the base joint:
+            # 0.06 rad of encoder drift after 5 s); runs start straight (paper §6), so frames
+            # consistent with that (within 3 standard errors) start it exactly there
+            se = params.sensors.camera_noise / np.sqrt(first.sum())
+            how = "straight" if np.all(np.abs(alpha0) <= 3.0 * se) else "camera"
+            alpha0 = np.zeros_like(alpha0) if how == "straight" else alpha0
+        replay = Experiment(np.asarray(m.force, float), period, tc[inside], alpha0, name=name)
+        return cls(replay, np.asarray(m.theta, float), np.asarray(cam.alpha[inside], float), how)
 
     @property
     def n_samples(self) -> dict:
@@ -179,19 +187,12 @@ class Layout:
         return np.asarray(x)[[i for i, n in enumerate(self.names) if n.split("(")[0] == symbol]]
 
 
-def simulated_signals(exp: Experiment, theta, alpha) -> tuple:
-    """Encoder increments (T, m) and camera-time angles (F, N) of one run (theta, alpha at exp.t)."""
-    enc = theta - theta[0]
-    cam = np.stack([np.interp(exp.camera_t, exp.t, alpha[:, j]) for j in range(alpha.shape[1])], axis=1)
-    return enc, cam
-
-
-def residuals(experiments, runs, sigmas: dict) -> dict:
+def residuals(measured, runs, sigmas: dict) -> dict:
     """Weighted residuals per signal, {"encoders": (sum T m,), "camera": (sum F N,)}, of ``runs``
-    (one (theta (T, m), alpha (T, N)) per experiment); NaN where a run diverged."""
+    (per log: simulated motor angles (T, m) and camera-frame angles (F, N)); NaN where a run
+    diverged.  Encoders compare increments from the first sample (a log's encoders start at 0)."""
     enc_r, cam_r = [], []
-    for exp, (theta, alpha) in zip(experiments, runs):
-        enc, cam = simulated_signals(exp, theta, alpha)
-        enc_r.append(((enc - (exp.theta - exp.theta[0])) / sigmas["encoders"]).ravel())
-        cam_r.append(((cam - exp.camera_alpha) / sigmas["camera"]).ravel())
+    for meas, (theta, alpha) in zip(measured, runs):
+        enc_r.append((((theta - theta[0]) - (meas.theta - meas.theta[0])) / sigmas["encoders"]).ravel())
+        cam_r.append(((alpha - meas.camera_alpha) / sigmas["camera"]).ravel())
     return {"encoders": np.concatenate(enc_r), "camera": np.concatenate(cam_r)}
