@@ -96,6 +96,20 @@ class Measured:
     def n_samples(self) -> dict:
         return {"encoders": self.theta.size, "camera": self.camera_alpha.size}
 
+    @property
+    def duration_s(self) -> float:
+        return self.replay.n_periods * self.replay.period
+
+    def window(self, seconds: float) -> "Measured":
+        """The first ``seconds`` of this log (itself when it is not longer)."""
+        T = int(round(seconds / self.replay.period))
+        if T >= self.replay.n_periods:
+            return self
+        r = self.replay
+        keep = r.camera_t <= T * r.period
+        return Measured(Experiment(r.force[:T], r.period, r.camera_t[keep], r.alpha0, name=r.name),
+                        self.theta[:T], self.camera_alpha[keep], self.start_pose)
+
 
 def same_neck(params: NeckParams, other: NeckParams, name: str, first: str) -> None:
     """ValueError naming the first field where ``other`` (log ``name``) differs from ``params``
