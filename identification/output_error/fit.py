@@ -24,7 +24,7 @@ from identification.output_error.settings import OutputErrorSettings
 from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residuals
 from identification.output_error import _serial, rollouts as engine
 
-__all__ = ["OutputErrorSettings", "OutputErrorResult", "fit"]
+__all__ = ["OutputErrorSettings", "OutputErrorResult", "fit", "cost_at", "horizons"]
 
 #: Smallest parameter scale per group (x_scale and finite-difference step), in the group's unit.
 SCALE_FLOOR = {"f_s": 1.0, "k": 100.0, "lambda": 1.0, "c_a": 10.0}
@@ -135,6 +135,16 @@ class _Evaluator:
 
     def residual(self, run) -> dict:
         return residuals(self.measured, run, self.sigmas)
+
+
+def cost_at(measured, layout: Layout, x, integrator: str) -> dict:
+    """Cost ratio per signal (:func:`misfit.cost_ratios`) of one parameter vector; ValueError if
+    its re-simulation diverges."""
+    ev = _Evaluator(measured, layout, integrator, None)
+    (run,), (why,) = ev.runs([np.asarray(x, dtype=float)])
+    if run is None:
+        raise ValueError(f"output-error: this parameter set cannot be simulated ({why})")
+    return cost_ratios(ev.residual(run))
 
 
 class _Diverged(ValueError):

@@ -148,15 +148,16 @@ class Layout:
             value = getattr(e, fld, None) if fld else None
             if value is None or e.baseline:
                 continue
-            unit = next((c.unit for c in e.columns if c.name == fld), "")
+            col = next((c for c in e.columns if c.symbol == fld), None)
+            unit, lo = (col.unit, 0.0 if col.signed else -np.inf) if col is not None else ("", -np.inf)
             cables = getattr(e, "cables", None)
             if isinstance(value, tuple):
                 idx = list(cables) if cables is not None else list(range(len(value)))
                 for i, j in enumerate(idx):
                     names.append(f"{e.name}.{fld}({j + 1})"), slots.append(("effect", (e.name, fld), i))
-                    units.append(unit), lower.append(0.0)
+                    units.append(unit), lower.append(lo)
             else:
-                names.append(f"{e.name}.{fld}"), units.append(unit), lower.append(0.0)
+                names.append(f"{e.name}.{fld}"), units.append(unit), lower.append(lo)
                 slots.append(("effect", (e.name, fld), None))
         p = len(names)
         return cls(tuple(names), tuple(units), np.array(lower, float), np.full(p, np.inf), params, effects,
