@@ -261,7 +261,6 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
     ratio = p0.params.actuation.R / p0.params.actuation.r_d      # theta = ratio * s, as the plant reads it
     res = p0.params.sensors.encoder_resolution
     inv_res = 1.0 / res
-    fmax = np.array([[p.params.actuation.f_max] for p in plants])
     spec = mujoco.mjtState.mjSTATE_INTEGRATION
     b = mj_batch.Batch(p0.model, nsim=K, nthread=min(nthread, K))
     b.set_models([p.model for p in plants])
@@ -283,9 +282,9 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
         rows = np.flatnonzero(alive)
         if not rows.size:
             break
-        forces = np.minimum(np.maximum(exp.force[k0:k1], 0.0)[None], fmax[rows, None])     # (n, P, m)
+        # the drive actuators' ctrlrange [0, f_max] clips the forces as the plant does
         ctrl = np.zeros((rows.size, (k1 - k0) * nsub, nu))
-        ctrl[:, :, drive] = np.repeat(forces, nsub, axis=1)
+        ctrl[:, :, drive] = np.repeat(exp.force[k0:k1], nsub, axis=0)
         q = np.empty((rows.size, (k1 - k0) * nsub, nq))
         errors = {}
         try:
