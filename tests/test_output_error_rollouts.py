@@ -39,8 +39,9 @@ def _sets(p):
     return cable_params(p, f_s=f_s * up, k=k * down, lam=lam * up, c_a=c_a * down)
 
 
-def _serial(params, effects, exp):
-    """Encoders before each period and (stamp, alpha) of every camera frame, one Plant stepping alone."""
+def _serial(params, effects, exp, theta=None):
+    """Encoders before each period and (stamp, alpha) of every camera frame, one Plant stepping
+    alone; with ``theta`` also the motor angles before each period."""
     from neck_sim.plant import Plant
 
     plant = Plant(params.replace(**{"sensors.camera_noise": 0.0}), effects, seed=0, integrator=INTEGRATOR)
@@ -48,6 +49,8 @@ def _serial(params, effects, exp):
     enc, stamps, alpha = [], [], []
     for f in exp.force:
         enc.append(plant.encoders())
+        if theta is not None:
+            theta.append(plant.truth().theta)
         plant.step(f)
         frame = plant.camera_frame()
         if frame is not None:
@@ -65,9 +68,13 @@ def test_batch_rollout_equals_serial_plant_runs_bit_for_bit(logged):
     assert out.encoders.shape == (3, exp.n_periods, p.n_cables)
     assert out.camera_alpha.shape == (3, exp.camera_t.size, p.n_joints)
     assert not out.diverged.any() and out.reasons == ("", "", "")
+    raw = rollout(exp, sets, integrator=INTEGRATOR, nthread=2, quantise=False)
     for i, params in enumerate(sets):
-        enc, stamps, alpha = _serial(params, None, exp)
+        theta = []
+        enc, stamps, alpha = _serial(params, None, exp, theta)
         np.testing.assert_array_equal(out.encoders[i], enc)
+        np.testing.assert_array_equal(raw.encoders[i], theta)
+        np.testing.assert_array_equal(raw.camera_alpha[i], out.camera_alpha[i])
         frames = np.searchsorted(stamps, exp.camera_t)
         np.testing.assert_array_equal(stamps[frames], exp.camera_t)
         np.testing.assert_array_equal(out.camera_alpha[i], alpha[frames])

@@ -150,7 +150,8 @@ class Experiment:
 class Rollouts:
     """Simulated sensors of K parameter sets on one experiment.
 
-    ``encoders`` (K, T, m) rad at the logged motor samples; ``camera_alpha`` (K, F, N) rad true
+    ``encoders`` (K, T, m) rad at the logged motor samples (quantised as the plant's encoders, or
+    the motor angles theta with ``quantise=False``); ``camera_alpha`` (K, F, N) rad true
     joint angles at the logged camera frames; both NaN from a diverged set's divergence on.
     ``diverged`` (K,) bool; ``diverged_at`` (K,) s (NaN if not); ``reasons`` K strings ("" if not).
     """
@@ -184,14 +185,17 @@ def cable_params(base: NeckParams, *, f_s, k, lam, c_a) -> list[NeckParams]:
 
 
 def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effects | Sequence[Effects] | None = None,
-            *, integrator: str, timestep: float | None = None, nthread: int | None = None) -> Rollouts:
+            *, integrator: str, timestep: float | None = None, nthread: int | None = None,
+            quantise: bool = True) -> Rollouts:
     """Re-simulate ``experiment`` for each of the K parameter sets ``params`` (NeckParams).
 
     ``effects``: the extended model's effects, one for all sets or one per set (default none);
     ``integrator``: MuJoCo's integrator for every set (one of
     :data:`neck_sim.plant.INTEGRATORS`), fixed by the caller so that the response is continuous
     in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default the
-    CPUs this process may use).  Bad input raises ValueError in one line; a diverging set does not
+    CPUs this process may use); ``quantise``: encoders read as the plant's (nearest count), or
+    False for the motor angles theta themselves (rad, ``Plant.truth().theta``), which a
+    finite-difference Jacobian needs (a small parameter step rarely moves a count).  Bad input raises ValueError in one line; a diverging set does not
     raise (see :class:`Rollouts`).
     """
     from neck_sim.plant import Plant
@@ -233,8 +237,8 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         ids = range(g0, min(K, g0 + MAX_GROUP))
         plants = [Plant(params[i], effects[i], seed=0, timestep=timestep, integrator=integrator, backend="native")
                   for i in ids]
-        _run_group(experiment, plants, nthread, enc[g0:ids.stop], cam[g0:ids.stop], diverged[g0:ids.stop],
-                   at[g0:ids.stop], reasons, g0)
+        _run_group(experiment, plants, nthread, quantise, enc[g0:ids.stop], cam[g0:ids.stop],
+                   diverged[g0:ids.stop], at[g0:ids.stop], reasons, g0)
     return Rollouts(enc, cam, diverged, at, tuple(reasons))
 
 
@@ -246,7 +250,8 @@ def _sub_steps(experiment: Experiment, plant) -> np.ndarray:
     return np.clip(s, 0, experiment.n_periods * plant.substeps)
 
 
-def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, at, reasons: list, g0: int) -> None:
+def _run_group(exp: Experiment, plants: list, nthread: int, quantise: bool, enc, cam, diverged, at, reasons: list,
+               g0: int) -> None:
     """Roll out one group of plants into the given rows of the outputs."""
     p0 = plants[0]
     if abs(p0.period - exp.period) > 1e-9 * exp.period:
@@ -267,7 +272,7 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
     for i, p in enumerate(plants):
         p.reset(alpha0=exp.alpha0)
         mujoco.mj_getState(p.model, p.data, b.state[i], spec)
-        enc[i, 0] = p.encoders()
+        enc[i, 0] = p.encoders() if quantise else p.truth().theta
     if mujoco.get_mjcb_control() is None:
         raise RuntimeError("rollout: the plant's C callback is not installed as mjcb_control")
     frame_step = _sub_steps(exp, p0)
@@ -308,7 +313,9 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
             reasons[g0 + i] = reason
             q[j, bad_period * nsub:] = np.nan
         # encoders of periods k0+1 .. k1 (the reading after each period's last sub-step)
-        e = np.rint(ratio * q[:, nsub - 1::nsub][:, :, ix.qpos_motor] * inv_res) * res
+        e = ratio * q[:, nsub - 1::nsub][:, :, ix.qpos_motor]
+        if quantise:
+            e = np.rint(e * inv_res) * res
         hi = min(k1 + 1, T)
         enc[rows, k0 + 1:hi] = e[:, : hi - k0 - 1]
         sel = np.flatnonzero((frame_step > k0 * nsub) & (frame_step <= k1 * nsub))
