@@ -6,6 +6,8 @@ with the same forces stepped through one :class:`neck_sim.plant.Plant` per set (
 stepping path, with no camera noise so that its frames are the true joint angles).
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -156,6 +158,17 @@ def test_bad_input_is_refused_in_one_line(logged):
     slow = Experiment(exp.force, 2 * exp.period, exp.camera_t, exp.alpha0)
     _one_line_error(lambda: rollout(slow, [p], integrator=INTEGRATOR), "control period")
     _one_line_error(lambda: cable_params(p, f_s=[1.0, 2.0], k=1.0, lam=1.0, c_a=1.0), "cable_params", "(K, 4)")
+
+
+def test_default_threads_follow_the_environment(monkeypatch):
+    from identification.output_error.rollouts import THREADS_ENV, default_threads
+
+    monkeypatch.setenv(THREADS_ENV, "3")
+    assert default_threads() == 3
+    monkeypatch.setenv(THREADS_ENV, "none")
+    _one_line_error(default_threads, THREADS_ENV, "'none'")
+    monkeypatch.delenv(THREADS_ENV)
+    assert default_threads() == len(os.sched_getaffinity(0))
 
 
 def test_forces_outside_the_motor_range_are_clipped_as_the_plant_clips_them(logged):

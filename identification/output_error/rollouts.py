@@ -53,7 +53,10 @@ from neck_sim.effects import Effects
 from neck_sim.mjcf import model_index
 from neck_sim.params import NeckParams
 
-__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "MAX_GROUP"]
+__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "default_threads", "MAX_GROUP", "THREADS_ENV"]
+
+#: Environment variable that sets the threads of rollouts whose caller names none.
+THREADS_ENV = "NECK_SIM_ROLLOUT_THREADS"
 
 #: Parameter sets simulated together: their plants stay registered with the C callback (at most
 #: 256 live plants per process) and their sub-step records in memory while the group runs.
@@ -192,8 +195,8 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
     ``effects``: the extended model's effects, one for all sets or one per set (default none);
     ``integrator``: MuJoCo's integrator for every set (one of
     :data:`neck_sim.plant.INTEGRATORS`), fixed by the caller so that the response is continuous
-    in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default the
-    CPUs this process may use); ``quantise``: encoders read as the plant's (nearest count), or
+    in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default
+    :func:`default_threads`); ``quantise``: encoders read as the plant's (nearest count), or
     False for the motor angles theta themselves (rad, ``Plant.truth().theta``), which a
     finite-difference Jacobian needs (a small parameter step rarely moves a count).  Bad input raises ValueError in one line; a diverging set does not
     raise (see :class:`Rollouts`).
@@ -221,9 +224,8 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         raise ValueError(f"experiment {experiment.name!r}: forces for {experiment.force.shape[1]} cables and "
                          f"{experiment.alpha0.size} joint angles, the parameter sets describe {shape[1]} cables and "
                          f"{shape[0]} joints")
-    if nthread is None:
-        nthread = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    if not isinstance(nthread, int) or nthread < 1:
+    nthread = default_threads() if nthread is None else nthread
+    if not isinstance(nthread, int) or isinstance(nthread, bool) or nthread < 1:
         raise ValueError(f"nthread: expected a positive integer, got {nthread!r}")
 
     n, m = shape
@@ -240,6 +242,21 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         _run_group(experiment, plants, nthread, quantise, enc[g0:ids.stop], cam[g0:ids.stop],
                    diverged[g0:ids.stop], at[g0:ids.stop], reasons, g0)
     return Rollouts(enc, cam, diverged, at, tuple(reasons))
+
+
+def default_threads() -> int:
+    """Threads of a rollout when the caller names none: ``$NECK_SIM_ROLLOUT_THREADS`` if set (a
+    Dask worker or a benchmark pins it), else the CPUs this process may run on."""
+    raw = os.environ.get(THREADS_ENV)
+    if raw is not None:
+        try:
+            value = int(raw)
+        except ValueError:
+            value = 0
+        if value < 1:
+            raise ValueError(f"${THREADS_ENV}: expected a positive integer, got {raw!r}")
+        return value
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def _sub_steps(experiment: Experiment, plant) -> np.ndarray:
