@@ -53,7 +53,10 @@ from neck_sim.effects import Effects
 from neck_sim.mjcf import model_index
 from neck_sim.params import NeckParams
 
-__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "MAX_GROUP"]
+__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "default_threads", "MAX_GROUP", "THREADS_ENV"]
+
+#: Environment variable that sets the threads of rollouts whose caller names none.
+THREADS_ENV = "NECK_SIM_ROLLOUT_THREADS"
 
 #: Parameter sets simulated together: their plants stay registered with the C callback (at most
 #: 256 live plants per process) and their sub-step records in memory while the group runs.
@@ -150,7 +153,8 @@ class Experiment:
 class Rollouts:
     """Simulated sensors of K parameter sets on one experiment.
 
-    ``encoders`` (K, T, m) rad at the logged motor samples; ``camera_alpha`` (K, F, N) rad true
+    ``encoders`` (K, T, m) rad at the logged motor samples (quantised as the plant's encoders, or
+    the motor angles theta with ``quantise=False``); ``camera_alpha`` (K, F, N) rad true
     joint angles at the logged camera frames; both NaN from a diverged set's divergence on.
     ``diverged`` (K,) bool; ``diverged_at`` (K,) s (NaN if not); ``reasons`` K strings ("" if not).
     """
@@ -184,14 +188,17 @@ def cable_params(base: NeckParams, *, f_s, k, lam, c_a) -> list[NeckParams]:
 
 
 def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effects | Sequence[Effects] | None = None,
-            *, integrator: str, timestep: float | None = None, nthread: int | None = None) -> Rollouts:
+            *, integrator: str, timestep: float | None = None, nthread: int | None = None,
+            quantise: bool = True) -> Rollouts:
     """Re-simulate ``experiment`` for each of the K parameter sets ``params`` (NeckParams).
 
     ``effects``: the extended model's effects, one for all sets or one per set (default none);
     ``integrator``: MuJoCo's integrator for every set (one of
     :data:`neck_sim.plant.INTEGRATORS`), fixed by the caller so that the response is continuous
-    in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default the
-    CPUs this process may use).  Bad input raises ValueError in one line; a diverging set does not
+    in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default
+    :func:`default_threads`); ``quantise``: encoders read as the plant's (nearest count), or
+    False for the motor angles theta themselves (rad, ``Plant.truth().theta``), which a
+    finite-difference Jacobian needs (a small parameter step rarely moves a count).  Bad input raises ValueError in one line; a diverging set does not
     raise (see :class:`Rollouts`).
     """
     from neck_sim.plant import Plant
@@ -217,9 +224,8 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         raise ValueError(f"experiment {experiment.name!r}: forces for {experiment.force.shape[1]} cables and "
                          f"{experiment.alpha0.size} joint angles, the parameter sets describe {shape[1]} cables and "
                          f"{shape[0]} joints")
-    if nthread is None:
-        nthread = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    if not isinstance(nthread, int) or nthread < 1:
+    nthread = default_threads() if nthread is None else nthread
+    if not isinstance(nthread, int) or isinstance(nthread, bool) or nthread < 1:
         raise ValueError(f"nthread: expected a positive integer, got {nthread!r}")
 
     n, m = shape
@@ -233,9 +239,24 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         ids = range(g0, min(K, g0 + MAX_GROUP))
         plants = [Plant(params[i], effects[i], seed=0, timestep=timestep, integrator=integrator, backend="native")
                   for i in ids]
-        _run_group(experiment, plants, nthread, enc[g0:ids.stop], cam[g0:ids.stop], diverged[g0:ids.stop],
-                   at[g0:ids.stop], reasons, g0)
+        _run_group(experiment, plants, nthread, quantise, enc[g0:ids.stop], cam[g0:ids.stop],
+                   diverged[g0:ids.stop], at[g0:ids.stop], reasons, g0)
     return Rollouts(enc, cam, diverged, at, tuple(reasons))
+
+
+def default_threads() -> int:
+    """Threads of a rollout when the caller names none: ``$NECK_SIM_ROLLOUT_THREADS`` if set (a
+    Dask worker or a benchmark pins it), else the CPUs this process may run on."""
+    raw = os.environ.get(THREADS_ENV)
+    if raw is not None:
+        try:
+            value = int(raw)
+        except ValueError:
+            value = 0
+        if value < 1:
+            raise ValueError(f"${THREADS_ENV}: expected a positive integer, got {raw!r}")
+        return value
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def _sub_steps(experiment: Experiment, plant) -> np.ndarray:
@@ -246,7 +267,8 @@ def _sub_steps(experiment: Experiment, plant) -> np.ndarray:
     return np.clip(s, 0, experiment.n_periods * plant.substeps)
 
 
-def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, at, reasons: list, g0: int) -> None:
+def _run_group(exp: Experiment, plants: list, nthread: int, quantise: bool, enc, cam, diverged, at, reasons: list,
+               g0: int) -> None:
     """Roll out one group of plants into the given rows of the outputs."""
     p0 = plants[0]
     if abs(p0.period - exp.period) > 1e-9 * exp.period:
@@ -261,14 +283,13 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
     ratio = p0.params.actuation.R / p0.params.actuation.r_d      # theta = ratio * s, as the plant reads it
     res = p0.params.sensors.encoder_resolution
     inv_res = 1.0 / res
-    fmax = np.array([[p.params.actuation.f_max] for p in plants])
     spec = mujoco.mjtState.mjSTATE_INTEGRATION
     b = mj_batch.Batch(p0.model, nsim=K, nthread=min(nthread, K))
     b.set_models([p.model for p in plants])
     for i, p in enumerate(plants):
         p.reset(alpha0=exp.alpha0)
         mujoco.mj_getState(p.model, p.data, b.state[i], spec)
-        enc[i, 0] = p.encoders()
+        enc[i, 0] = p.encoders() if quantise else p.truth().theta
     if mujoco.get_mjcb_control() is None:
         raise RuntimeError("rollout: the plant's C callback is not installed as mjcb_control")
     frame_step = _sub_steps(exp, p0)
@@ -283,9 +304,9 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
         rows = np.flatnonzero(alive)
         if not rows.size:
             break
-        forces = np.minimum(np.maximum(exp.force[k0:k1], 0.0)[None], fmax[rows, None])     # (n, P, m)
+        # the drive actuators' ctrlrange [0, f_max] clips the forces as the plant does
         ctrl = np.zeros((rows.size, (k1 - k0) * nsub, nu))
-        ctrl[:, :, drive] = np.repeat(forces, nsub, axis=1)
+        ctrl[:, :, drive] = np.repeat(exp.force[k0:k1], nsub, axis=0)
         q = np.empty((rows.size, (k1 - k0) * nsub, nq))
         errors = {}
         try:
@@ -309,7 +330,9 @@ def _run_group(exp: Experiment, plants: list, nthread: int, enc, cam, diverged, 
             reasons[g0 + i] = reason
             q[j, bad_period * nsub:] = np.nan
         # encoders of periods k0+1 .. k1 (the reading after each period's last sub-step)
-        e = np.rint(ratio * q[:, nsub - 1::nsub][:, :, ix.qpos_motor] * inv_res) * res
+        e = ratio * q[:, nsub - 1::nsub][:, :, ix.qpos_motor]
+        if quantise:
+            e = np.rint(e * inv_res) * res
         hi = min(k1 + 1, T)
         enc[rows, k0 + 1:hi] = e[:, : hi - k0 - 1]
         sel = np.flatnonzero((frame_step > k0 * nsub) & (frame_step <= k1 * nsub))
