@@ -24,15 +24,17 @@ WINDOW_S = 2.0
 
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
-    """Two clean identification runs (law 1) with different camera-noise seeds."""
+    """Two clean identification runs (law 1): camera-noise seeds 0 and 1, moves and holds at their
+    nominal durations and 0.8 times them (law 1 does not read the camera: the second run's other
+    timing is what gives it other forces and encoder quantisation errors)."""
     from neck_sim.cli import main
 
     d = tmp_path_factory.mktemp("oe")
     paths = []
-    for seed in (0, 1):
+    for seed, scale in ((0, "1"), (1, "0.8")):
         path = d / f"ident{seed}.mcap"
         assert main(["simulate", "--trajectory", "identification", "--law", "1", "-o", str(path), "--no-progress",
-                     "--seed", str(seed)]) == 0
+                     "--seed", str(seed), "--duration-scale", scale]) == 0
         paths.append(path)
     return paths
 
@@ -55,20 +57,20 @@ def _start(x_true, seed=1, off=0.03):
 
 @pytest.fixture(scope="module")
 def fits(logs):
-    """Fits on two independent windows: the run's first 2 s (seed 0) and 40-42 s (seed 1)."""
+    """Fits on the first 2 s of each run (a re-simulation starts at rest: a window must too)."""
     from identification.output_error.fit import fit
     from identification.output_error.problem import Layout
 
     out = []
-    for path, t0 in ((logs[0], 0.0), (logs[1], 40.0)):
-        meas, params = _measured(path, t0)
+    for path in logs:
+        meas, params = _measured(path)
         layout = Layout.of(params)
         out.append((fit([meas], layout, _start(layout.vector())), layout.vector()))
     return out
 
 
 def test_accuracy_from_a_start_3_percent_off(fits):
-    # measured on the first window: f_s within 0.01 %, k and lambda 0.6 %, c_a 3.6 %
+    # measured: f_s within 0.010 / 0.003 %, k and lambda 0.57 / 0.40 %, c_a 3.6 / 2.1 % (run 1 / run 2)
     for res, truth in fits:
         err = np.abs(res.value - truth) / truth
         g = {sym: err[[i for i, n in enumerate(res.names) if n.startswith(sym + "(")]]
@@ -80,15 +82,17 @@ def test_accuracy_from_a_start_3_percent_off(fits):
 
 
 def test_cost_is_at_the_noise_floor(fits):
-    # weighted by the true noise, the clean run's mean square residual is 1 per signal
+    """Weighted by the true noise, the clean run's mean square residual is 1 per signal, within
+    3 standard deviations of a chi-square over its n samples, 3 sqrt(2 / n) (measured: encoders
+    0.994 / 0.993 over 8000 samples, camera 0.92 / 0.78 over 180)."""
     for res, _ in fits:
         for sig, ratio in res.cost_ratio.items():
-            assert 0.85 < ratio < 1.15, (sig, ratio)
+            assert abs(ratio - 1.0) < 3.0 * np.sqrt(2.0 / res.n_samples[sig]), (sig, ratio, res.n_samples[sig])
 
 
 def test_interval_coverage(fits):
-    """|error| / sigma over the 32 parameters of the two windows: about 68 % within 1 sigma, 95 %
-    within 1.96 (measured: 75 % and 100 % on the first window)."""
+    """|error| / sigma over the 32 parameters of the two runs: about 68 % within 1 sigma, 95 %
+    within 1.96 (measured: 75 / 81 % and 100 / 100 % on the two runs)."""
     z = np.concatenate([np.abs(res.value - truth) / res.sigma for res, truth in fits])
     assert 0.5 <= np.mean(z < 1.0) <= 0.9, np.round(z, 2)
     assert np.mean(z < 1.96) >= 0.85, np.round(z, 2)

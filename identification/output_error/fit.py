@@ -277,8 +277,11 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
 
 
 def _rollout(replay, params, effects, integrator):
-    """The parallel engine when it can return unquantised motor angles, else the serial one."""
-    if _UNQUANTISED:
+    """The parallel engine when it can return unquantised motor angles and step these effects
+    (a dead band or an actuation delay keeps state outside MuJoCo's), else the serial one."""
+    m = params[0].n_cables if params else 0
+    outside = any(e is not None and (e.command_delay() > 0 or np.any(e.encoder_band(m) > 0)) for e in effects)
+    if _UNQUANTISED and not outside:
         return engine.rollout(replay, params, effects, integrator=integrator, quantise=False)
     return _serial.rollout(replay, params, effects, integrator=integrator)
 
