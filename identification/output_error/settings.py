@@ -19,7 +19,7 @@ class OutputErrorSettings:
     spans the fit grows through (:func:`identification.output_error.fit.horizons`)."""
 
     integrator: str | None = None
-    first_horizon_s: float = 5.0
+    first_horizon_s: float = 2.0
     horizon_growth: float = 4.0
     max_evaluations: int = 12
     rel_step: float = 1e-5
