@@ -213,7 +213,7 @@ def test_layout_of_an_extended_model_round_trips():
     assert to_dict(back) == to_dict(p) and beff == eff
 
 
-def test_logs_of_different_necks_are_refused(logs):
+def test_logs_of_different_necks_are_refused():
     from identification.output_error.problem import same_neck
 
     p = default_params(3)
