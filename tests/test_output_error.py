@@ -233,3 +233,23 @@ def test_model_file_errors_are_one_line(tmp_path):
     bad.write_text(json.dumps({"params": {}, "effects": {}, "rigid_cables": True}))
     with pytest.raises(ValueError, match="rigid-cable model"):
         load_extended_model(bad)
+
+
+def test_cli_json_holds_output_error_beside_least_squares(logs, tmp_path, capsys):
+    """`identify --method output-error`: text and JSON carry both methods (a fit cut short at 2
+    evaluations per span says it did not converge)."""
+    from neck_sim.cli import main
+
+    out = tmp_path / "id.json"
+    assert main(["identify", str(logs[0]), "--method", "output-error", "--end", "4.5", "--max-evaluations", "2",
+                 "--bootstrap", "0", "--no-alpha", "--no-progress", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Table 1" in text and "Output-error identification" in text and "NOT CONVERGED" in text
+    data = json.loads(out.read_text())
+    assert data["models"]["variable"] is not None
+    oe = data["output_error"]
+    for group in ("f_s", "k", "lambda", "c_a"):
+        rows = oe["parameters"][group]
+        assert len(rows) == 4 and all(np.isfinite(r["value"]) and r["ci95"] > 0 for r in rows)
+    assert oe["converged"] is False and oe["integrator"] == "implicitfast"
+    assert [s["span_s"] for s in oe["stages"]] == [2.0, 4.5]
