@@ -102,6 +102,8 @@ def identify_output_error(logs, params: NeckParams | None = None, *, model: Exte
         if (nominal.n_joints, nominal.n_cables) != (lp.n_joints, lp.n_cables):
             raise ValueError(f"--model {model.path}: {nominal.n_joints} joints and {nominal.n_cables} cables, the log "
                              f"{first} has {lp.n_joints} and {lp.n_cables}")
+        if nominal.routing.segment_cases(nominal.n_joints).tolist() != lp.routing.segment_cases(lp.n_joints).tolist():
+            raise ValueError(f"--model {model.path}: routes the cables differently from the neck record of {first}")
         model.effects.check(nominal)
     measured = [Measured.from_log(log, nominal, name=str(log.path)) for log in logs]
     if least_squares is None:

@@ -96,6 +96,20 @@ class Measured:
     def n_samples(self) -> dict:
         return {"encoders": self.theta.size, "camera": self.camera_alpha.size}
 
+    @property
+    def duration_s(self) -> float:
+        return self.replay.n_periods * self.replay.period
+
+    def window(self, seconds: float) -> "Measured":
+        """The first ``seconds`` of this log (itself when it is not longer)."""
+        T = int(round(seconds / self.replay.period))
+        if T >= self.replay.n_periods:
+            return self
+        r = self.replay
+        keep = r.camera_t <= T * r.period
+        return Measured(Experiment(r.force[:T], r.period, r.camera_t[keep], r.alpha0, name=r.name),
+                        self.theta[:T], self.camera_alpha[keep], self.start_pose)
+
 
 def same_neck(params: NeckParams, other: NeckParams, name: str, first: str) -> None:
     """ValueError naming the first field where ``other`` (log ``name``) differs from ``params``
@@ -134,15 +148,16 @@ class Layout:
             value = getattr(e, fld, None) if fld else None
             if value is None or e.baseline:
                 continue
-            unit = next((c.unit for c in e.columns if c.name == fld), "")
+            col = next((c for c in e.columns if c.symbol == fld), None)
+            unit, lo = (col.unit, 0.0 if col.signed else -np.inf) if col is not None else ("", -np.inf)
             cables = getattr(e, "cables", None)
             if isinstance(value, tuple):
                 idx = list(cables) if cables is not None else list(range(len(value)))
                 for i, j in enumerate(idx):
                     names.append(f"{e.name}.{fld}({j + 1})"), slots.append(("effect", (e.name, fld), i))
-                    units.append(unit), lower.append(0.0)
+                    units.append(unit), lower.append(lo)
             else:
-                names.append(f"{e.name}.{fld}"), units.append(unit), lower.append(0.0)
+                names.append(f"{e.name}.{fld}"), units.append(unit), lower.append(lo)
                 slots.append(("effect", (e.name, fld), None))
         p = len(names)
         return cls(tuple(names), tuple(units), np.array(lower, float), np.full(p, np.inf), params, effects,

@@ -72,6 +72,9 @@ def _check_method_options(args) -> None:
                        ("--max-evaluations", args.max_evaluations)):
         if given is not None and not oe:
             raise ValueError(f"{opt}: only with --method output-error")
+    if oe and args.start:
+        raise ValueError("--start: output error re-simulates each log from rest at its start; a window that begins "
+                         "inside a moving run cannot be replayed (use --end to shorten it)")
     if oe and args.simulators and len(args.log) > 1:
         raise ValueError("--simulators: compares one log; give one LOG or leave --simulators out")
     if len(set(args.log)) < len(args.log):
