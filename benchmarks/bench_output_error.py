@@ -211,7 +211,30 @@ def main(argv=None) -> int:
     print(f"log: {os.path.basename(path)}, {T / log.params.control.rate_hz:.1f} s ({T} motor samples, {F} camera "
           f"frames), 16 parameters (f_s, k, lambda, c_a x 4 cables), start: the least squares")
     ls, ls_values, ls_clock = least_squares(log)
-    rows = [("least squares (eqs 44-57), baseline", errors(ls_values, truth), None, ls_clock, "")]
+    head = f"{'method':38} {'f_s %':>8} {'k %':>8} {'lambda %':>9} {'c_a %':>8} {'rollouts':>9} {'CPU s':>8} " \
+           f"{'wall s':>8} {'CPU/LS':>7}"
+    print("largest |relative error| per group against the plant's truth (rows printed as measured)")
+    print(head)
+    print("-" * len(head), flush=True)
+    rows = []
+
+    def row(name, err, n, clock, note=""):
+        rows.append((name, err, n, clock, note))
+        cell = lambda v: f"{v:8.3f}" if v is not None else f"{'-':>8}"   # noqa: E731
+        print(f"{name:38} {cell(err['f_s'])} {cell(err['k'])} {cell(err['lambda']):>9} {cell(err['c_a'])} "
+              f"{'' if n is None else n:>9} {clock.cpu:8.1f} {clock.wall:8.1f} {clock.cpu / ls_clock.cpu:7.1f}"
+              + (f"  {note}" if note else ""), flush=True)
+
+    row("least squares (eqs 44-57), baseline", errors(ls_values, truth), None, ls_clock)
+    oe = {}
+    for threads in (2, 1):
+        values, n, clock, res = output_error(log, ls, threads, args.max_evaluations)
+        oe[threads] = clock
+        row(f"neck-sim output-error, {threads} thread{'s' if threads > 1 else ''}", errors(values, truth), n, clock,
+            "" if res.converged else "not converged")
+    summary = {"oe_wall_1_over_2_threads": oe[1].wall / oe[2].wall}
+    cost = rollout_cost(log, truth, args.cost_sets, (1, 2))
+    sys_row = None
     if not args.no_sysid:
         try:
             import mujoco.sysid as mjsysid
@@ -220,34 +243,14 @@ def main(argv=None) -> int:
             have = False
         if have:
             values, n, clock, status = sysid(log, ls, 2, args.sysid_max_iter)
-            rows.append(("mujoco.sysid (GN), 2 threads", errors(values, truth), n, clock,
-                         "" if status == "ok" else status))
+            row("mujoco.sysid (GN), 2 threads", errors(values, truth), n, clock, "" if status == "ok" else status)
+            sys_row = rows[-1]
         else:
             print("mujoco.sysid is not installed with its extras (pip install .[sysid]): skipped", file=sys.stderr)
-    oe = {}
-    for threads in (1, 2):
-        values, n, clock, res = output_error(log, ls, threads, args.max_evaluations)
-        oe[threads] = clock
-        rows.append((f"neck-sim output-error, {threads} thread{'s' if threads > 1 else ''}", errors(values, truth),
-                     n, clock, "" if res.converged else "not converged"))
-    head = f"{'method':38} {'f_s %':>8} {'k %':>8} {'lambda %':>9} {'c_a %':>8} {'rollouts':>9} {'CPU s':>8} " \
-           f"{'wall s':>8} {'CPU/LS':>7}"
-    print("largest |relative error| per group against the plant's truth")
-    print(head)
-    print("-" * len(head))
-    cell = lambda v: f"{v:8.3f}" if v is not None else f"{'-':>8}"   # noqa: E731
-    for name, err, n, clock, note in rows:
-        print(f"{name:38} {cell(err['f_s'])} {cell(err['k'])} {cell(err['lambda']):>9} {cell(err['c_a'])} "
-              f"{'' if n is None else n:>9} {clock.cpu:8.1f} {clock.wall:8.1f} {clock.cpu / ls_clock.cpu:7.1f}"
-              + (f"  {note}" if note else ""))
-    summary = {}
-    sys_row = next((r for r in rows if r[0].startswith("mujoco.sysid")), None)
     if sys_row is not None:
         summary["oe_cpu_over_sysid"] = oe[2].cpu / sys_row[3].cpu
         print(f"output-error CPU / mujoco.sysid CPU (2 threads): {summary['oe_cpu_over_sysid']:.3f} (target <= 0.1)")
-    summary["oe_wall_1_over_2_threads"] = oe[1].wall / oe[2].wall
     print(f"output-error wall time, 1 thread / 2 threads: {summary['oe_wall_1_over_2_threads']:.2f}")
-    cost = rollout_cost(log, truth, args.cost_sets, (1, 2))
     print(f"\nper rollout ({args.cost_sets} parameter sets, {T / log.params.control.rate_hz:.1f} s each)")
     head = f"{'engine':44} {'CPU s':>8} {'wall s':>8} {'wall / batch 1 thread':>22}"
     print(head)
