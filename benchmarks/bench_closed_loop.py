@@ -1,4 +1,4 @@
-"""Closed-loop speed (issue 13): control step, closed-loop period, logging share, whole process, lockstep.
+"""Closed-loop speed: control step, closed-loop period, logging share, whole process, lockstep.
 
 Everything is measured in one run and printed as ratios to baselines measured in the same run
 (shared machines are noisy; ratios travel, seconds do not), as the least CPU time of ``--repeat``

@@ -8,168 +8,52 @@ data, reproductions); ``run_closed_loop`` is its single-run case.  Each control 
     one PlantBatch step for all K plants (one native call);   their camera frames, if any
 
 and everything is recorded -- the measured topics (motors, camera, reference, estimate) and the
-simulation truth -- to arrays and, if asked, to an MCAP log written in bulk from those arrays
-when the run ends (:meth:`neck_sim.logs.LogWriter.write_batch`).
+simulation truth -- into one :class:`neck_sim.recorder.Recorder` and, if asked, to an MCAP log
+written in bulk from its arrays when the run ends (:meth:`neck_sim.recorder.Recorder.write`).
+The periods between events (camera frames, failures) run in one compiled call that steps the
+native batch itself (:mod:`neck_sim.native.fused`).
 
-The metrics are the paper's (§7, Table 3), in degrees, averaged over every sample and joint:
+Usage::
 
-* tracking e = mean |alpha_hat - alpha_d| (what the controller sees; Fig. 16) and, from the truth,
-  mean |alpha - alpha_d|;
-* estimation e_alpha = mean |alpha_hat - alpha_camera| at the camera frames (what the paper
-  measures, Fig. 15; includes the camera's 1 deg noise) and mean |alpha_hat - alpha| (truth);
-* force range, samples with a slack cable (a true tension <= ``SLACK_TENSION``; the take-up of the
-  unstretched cables at the start, before every cable is first taut, is not counted: ``take_up``),
-  samples with a force clipped at f_max.
+    from controllers.closed_loop import run_closed_loop
+    from controllers.computed_torque import ComputedTorqueController
+    from controllers.trajectories import make_trajectory
+    from neck_sim.params import default_params
+    from neck_sim.plant import Plant
+
+    p = default_params(3)
+    result = run_closed_loop(Plant(p), ComputedTorqueController(p, 2), make_trajectory("sine", p))
+    print(result.metrics.tracking_error)       # deg
+
+The metrics are the paper's (:mod:`controllers.run_result`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import os
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from numba import types
-from numba.extending import intrinsic
-
 from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, control_rows,
                                         output_slices, reference_table, step_error)
+from controllers.run_result import SLACK_TENSION, Metrics, RunResult, compute_metrics
 from controllers.trajectories import Trajectory
+from neck_sim.batch import PlantBatch, clip_forces, delayed_controls
 from neck_sim.jit import kernel
 from neck_sim.live import active as active_live_view
-from neck_sim.plant import _DISPATCH, Plant, PlantBatch, clip_forces, delayed_controls, truth_columns
+from neck_sim.native import DISPATCH, call_c
+from neck_sim.plant import Plant
+from neck_sim.recorder import Recorder
 from neck_sim.replay import plant_run_info
 
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "LOCKSTEP_GROUP", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
            "compute_metrics"]
-
-SLACK_TENSION = 1e-6   # N: a cable carrying less than this is slack (the plant's tension is exactly 0 then)
 
 # Run the periods between events (camera frames, failures) in one compiled call (_run_periods) when
 # every controller is compiled and every plant in a native PlantBatch.
 # False: every period through the Python loop (the reference the compiled path must equal exactly).
 FUSE_PERIODS = True
 _MAX_FUSED = 500       # periods per compiled call at most: the progress bar moves at least every 1 s simulated
-
-
-@dataclass(frozen=True)
-class Metrics:
-    """The paper's closed-loop measures (angles in degrees, forces in N)."""
-
-    tracking_error: float             # mean |alpha_hat - alpha_d|, e of §7
-    tracking_error_true: float        # mean |alpha - alpha_d|
-    estimation_error_camera: float    # mean |alpha_hat - alpha_camera|, e_alpha of §7
-    estimation_error_true: float      # mean |alpha_hat - alpha|, e_alpha of Table 3
-    max_tracking_error: float         # max |alpha_hat - alpha_d|
-    max_estimation_error_true: float  # max |alpha_hat - alpha|
-    tracking_error_per_joint: tuple
-    estimation_error_true_per_joint: tuple
-    force_min: float
-    force_max: float
-    force_mean: float
-    slack_samples: int                # samples with at least one slack cable
-    slack_per_cable: tuple
-    take_up: float                    # s, time until every cable was first taut (not counted as slack)
-    saturated_samples: int            # samples with at least one force clipped at f_max
-    samples: int
-    camera_frames: int
-    duration: float                   # s
-
-    def as_dict(self) -> dict[str, Any]:
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(self).items()}
-
-
-@dataclass(frozen=True, eq=False)
-class RunResult:
-    """Arrays of one closed-loop run (T control samples, C camera frames) and its metrics.
-
-    t (T,) s; alpha_d, alpha_hat, alpha, alpha_dot (T, N); theta, force, requested, saturated,
-    elongation_hat, tension, elongation (T, m) (m cables); gamma (T, N) N m; loop_gap (T,) m;
-    camera_t (C,), camera_alpha (C, N).
-    """
-
-    t: np.ndarray
-    alpha_d: np.ndarray
-    alpha_hat: np.ndarray
-    theta: np.ndarray
-    force: np.ndarray
-    requested: np.ndarray
-    saturated: np.ndarray
-    elongation_hat: np.ndarray
-    gamma: np.ndarray
-    alpha: np.ndarray
-    alpha_dot: np.ndarray
-    tension: np.ndarray
-    elongation: np.ndarray
-    loop_gap: np.ndarray
-    camera_t: np.ndarray
-    camera_alpha: np.ndarray
-    metrics: Metrics
-    info: dict = field(default_factory=dict)
-    log_path: str | None = None
-
-    def summary(self) -> dict[str, Any]:
-        """Metrics and run information as plain JSON-able values."""
-        return {"info": self.info, "metrics": self.metrics.as_dict(), "log": self.log_path}
-
-    def write_json(self, path) -> None:
-        from neck_sim.atomic import atomic_write_json
-        atomic_write_json(path, self.summary())
-
-
-def compute_metrics(t, alpha_d, alpha_hat, alpha, tension, force, saturated, camera_t, camera_alpha) -> Metrics:
-    """Metrics of :class:`Metrics` from the recorded arrays (shapes as in :class:`RunResult`)."""
-    deg = np.degrees
-    track = np.abs(alpha_hat - alpha_d)
-    est = np.abs(alpha_hat - alpha)
-    if len(camera_t):
-        # alpha_hat at the frame instants, linearly between control samples
-        hat_at_cam = np.stack([np.interp(camera_t, t, alpha_hat[:, j]) for j in range(alpha_hat.shape[1])], -1)
-        cam_err = float(deg(np.abs(hat_at_cam - camera_alpha).mean()))
-    else:
-        cam_err = float("nan")
-    slack = tension <= SLACK_TENSION
-    # The plant starts with unstretched cables: the first milliseconds take the slack up.  Count
-    # slack samples only once every cable has been taut (from sample 1 if that never happens).
-    taut = np.flatnonzero(~slack.any(-1))
-    take_up = int(taut[0]) if taut.size else 1
-    slack[:take_up] = False
-    return Metrics(
-        tracking_error=float(deg(track.mean())),
-        tracking_error_true=float(deg(np.abs(alpha - alpha_d).mean())),
-        estimation_error_camera=cam_err,
-        estimation_error_true=float(deg(est.mean())),
-        max_tracking_error=float(deg(track.max())),
-        max_estimation_error_true=float(deg(est.max())),
-        tracking_error_per_joint=tuple(float(x) for x in deg(track.mean(0))),
-        estimation_error_true_per_joint=tuple(float(x) for x in deg(est.mean(0))),
-        force_min=float(force.min()), force_max=float(force.max()), force_mean=float(force.mean()),
-        slack_samples=int(slack.any(-1).sum()),
-        slack_per_cable=tuple(int(x) for x in slack.sum(0)),
-        take_up=float(t[take_up] - t[0]) if len(t) > take_up else float("nan"),
-        saturated_samples=int(saturated.any(-1).sum()),
-        samples=int(len(t)), camera_frames=int(len(camera_t)),
-        duration=float(t[-1] - t[0]) if len(t) else 0.0)
-
-
-@intrinsic
-def _call_c(typingctx, address, args):
-    """``int f(args...)`` called at ``address`` (an integer): a C function pointer that numba's cache
-    can keep (an address baked into the code as a ctypes global would not survive the process).
-    ``args`` a tuple of int32 (C int) and int64 (pointers, passed as 64-bit integers)."""
-    if not (isinstance(address, types.Integer) and isinstance(args, types.BaseTuple)
-            and all(t in (types.int32, types.int64) for t in args.types)):
-        return None
-
-    def codegen(context, builder, signature, llargs):
-        from llvmlite import ir
-        values = [builder.extract_value(llargs[1], i) for i in range(len(args.types))]
-        fnty = ir.FunctionType(ir.IntType(32), [v.type for v in values])
-        return builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), values)
-
-    return types.int32(address, args), codegen
 
 
 @kernel
@@ -214,7 +98,7 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
         clip_forces(outs[:, k, fcol:fcol + m], fmax, forces)
         if delayed:
             delayed_controls(delay_line[0], forces, *delay_line[1:])
-        fatal = _call_c(step_fn, step_args)
+        fatal = call_c(step_fn, step_args)
         if fatal != 0:
             return k, 2, fatal
     return k1, 0, 0
@@ -256,17 +140,16 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
     are K-long sequences: each run has its own plant (seed, parameters, effects), controller (law,
     model, gains) and trajectory; all trajectories have the same number of control periods and
     every controller the same N.  One compiled call advances the K controllers and one
-    :class:`neck_sim.plant.PlantBatch` call steps the K plants (objects of other types, e.g. a
-    wrapped plant, step alone through their ``step``); every run is recorded into (K, T, ...)
-    arrays.  Memory: about 8 (13 N + 10) K T bytes for T periods.  More than :data:`LOCKSTEP_GROUP`
-    runs are advanced in groups of that size, one group after the other.
+    :class:`neck_sim.batch.PlantBatch` call steps the K plants (objects of other types, e.g. a
+    wrapped plant, step alone through their ``step``); every run is recorded into one
+    :class:`neck_sim.recorder.Recorder` of (K, T, ...) arrays.  Memory: about 8 (16 N + 11) K T
+    bytes for T periods.  More than :data:`LOCKSTEP_GROUP` runs are advanced in groups of that
+    size, one group after the other.
 
     Returns one entry per run: its :class:`RunResult`, or (``stop_on_error=False``) the
     RuntimeError that stopped it (controller failure, diverged plant) while the others go on.
     With ``stop_on_error=True`` the first failure is raised.
     """
-    from tqdm.auto import tqdm
-
     plants, controllers, trajectories = list(plants), list(controllers), list(trajectories)
     K = len(plants)
     log_paths = [None] * K if log_paths is None else list(log_paths)
@@ -285,234 +168,276 @@ def run_lockstep(plants, controllers, trajectories, *, log_paths=None, progress:
                                 progress=progress, reset=reset, run_infos=run_infos[part],
                                 stop_on_error=stop_on_error)
         return out
-    n = controllers[0].params.n_joints
-    rate = controllers[0].params.control.rate_hz
-    steps = None
-    refs = []
-    for i, (plant, ctrl, traj) in enumerate(zip(plants, controllers, trajectories)):
-        p = ctrl.params
-        traj.check_workspace(p)
-        if abs(plant.params.control.rate_hz - p.control.rate_hz) > 1e-9:
-            raise ValueError(f"control rate: plant steps at {plant.params.control.rate_hz} Hz, controller at "
-                             f"{p.control.rate_hz} Hz")
-        if abs(p.control.rate_hz - rate) > 1e-9 or p.n_joints != n:
-            raise ValueError(f"lockstep run {i}: every controller needs N = {n} and {rate} Hz")
-        length = int(round(traj.duration * rate)) + 1
-        if steps is not None and length != steps:
-            raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {steps}")
-        steps = length
-        refs.append(ctrl.motor_reference(traj.sample(np.arange(steps) / rate)))
-    m = controllers[0].params.n_cables
-    if any(c.params.n_cables != m for c in controllers):
-        raise ValueError(f"lockstep: every controller needs the same number of cables ({m})")
-    compiled = all(isinstance(c, ComputedTorqueController) for c in controllers)
-    for plant, ctrl, ref in zip(plants, controllers, refs):
-        if reset:
-            plant.reset(alpha0=ref.alpha[0])
-        ctrl.reset(ref.alpha[0], plant.encoders())
-    if compiled:
-        tables = np.stack([reference_table(r) for r in refs])
-        state = ControllerState.stack([c.state for c in controllers])
-        status = state.status
-
-    # The plant's seed, effects and parameters make `neck-sim replay` of a log exact.
-    infos = [{**plant_run_info(plant), "trajectory": traj.name, "duration_s": traj.duration, "law": int(ctrl.law),
-              "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
-             for plant, ctrl, traj, info in zip(plants, controllers, trajectories, run_infos)]
-    truth_cols = truth_columns(n, m)
-    rec_t = np.empty((K, steps))
-    rec_theta = np.empty((K, steps, m))
-    rec_truth = np.empty((K, steps, truth_cols["loop_gap"].stop))     # rows of PlantBatch.out
-    columns = output_slices(n, m)
-    outs = np.zeros((K, steps, max(sl.stop for sl in columns.values())))   # rows of output_slices
-    forces = outs[:, :, columns["forces"]]
-    theta = np.empty((K, m))
-    cameras = [([], []) for _ in range(K)]
-    errors: list = [None] * K
-    alive = np.ones(K, dtype=bool)
-    # Plants step together in one PlantBatch; anything else with the plant's interface (a wrapped
-    # plant, a stand-in) steps alone through its own step().
-    batched = [i for i, p in enumerate(plants) if type(p) is Plant and not p.steps_alone]
-    alone = [i for i in range(K) if i not in batched]
-    rows = slice(None) if not alone else np.array(batched, dtype=np.intp)
-    batch = PlantBatch([plants[i] for i in batched]) if batched else None
-    start = None if batch is None else batch.k.copy()
-    position = {i: j for j, i in enumerate(batched)}         # run -> its row in the batch
-    writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, infos)]
-    live = active_live_view() if K == 1 else None
-    shown = [0, 0]            # periods and camera frames of the run already sent to the live view
-    if live is not None:
-        live.new_run()
-        live_every = max(1, int(rate / live.rate_hz))        # periods per scene frame
-
-    def show(k1: int) -> None:
-        """Periods [shown, k1) of the (single) run to the live view: between compiled chunks."""
-        k0, f0 = shown
-        j = position.get(0)
-        t = rec_t[0, k0:k1] if j is None else (start[j] + np.arange(k0, k1) * batch.nsub) * batch.dt
-        rec = {name: rec_truth[0, k0:k1, sl] for name, sl in truth_cols.items()}
-        rec["theta"] = rec_theta[0, k0:k1]
-        cols = {name: outs[0, k0:k1, sl] for name, sl in columns.items()}
-        cam_t, cam_alpha = cameras[0]
-        _write_topics(live, t, rec, cols, refs[0].alpha[k0:k1], np.asarray(cam_t[f0:], dtype=float),
-                      np.asarray(cam_alpha[f0:], dtype=float).reshape(-1, n))
-        shown[:] = [k1, len(cam_t)]
-
-    def fail(i: int, t: float, exc: Exception) -> None:
-        err = RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}")
-        if stop_on_error:
-            raise err from exc
-        err.__cause__ = exc
-        errors[i] = err
-        alive[i] = False
-        if compiled:
-            status[i] = status[i] or -1       # the controller stops with its plant
-        if i in position and batch.active[position[i]]:
-            batch.stop(position[i], err)      # the plant stops with its controller
-
-    def t_of(i: int, k: int) -> float:
-        """Time of period k of run i (s)."""
-        j = position.get(i)
-        return rec_t[i, k] if j is None else (start[j] + k * batch.nsub) * batch.dt
-
+    run = _Lockstep(plants, controllers, trajectories, reset, stop_on_error)
     try:
-        desc = trajectories[0].name + (f" law {int(controllers[0].law)}" if K == 1 else f" x {K}")
-        bar = tqdm(total=steps, desc=desc, unit="step", disable=not progress, mininterval=0.5)
-        fused = FUSE_PERIODS and compiled and not alone and batch is not None
+        run.open(log_paths, run_infos)
+        run.advance(progress)
+        return run.results()
+    except BaseException:
+        run.abort()
+        raise
+    finally:
+        run.close()
+
+
+class _Lockstep:
+    """One group of run_lockstep's runs, stage by stage: setup (``__init__``: checks, references,
+    resets; :meth:`open`: records, batch, logs), stepping (:meth:`advance`: compiled chunks
+    :meth:`fused` between events, else period by period :meth:`record`, :meth:`control`,
+    :meth:`step`), and the results (:meth:`results`)."""
+
+    def __init__(self, plants, controllers, trajectories, reset: bool, stop_on_error: bool):
+        self.plants, self.controllers, self.trajectories = plants, controllers, trajectories
+        self.stop_on_error, self.K = stop_on_error, len(plants)
+        self.n = n = controllers[0].params.n_joints
+        self.rate = rate = controllers[0].params.control.rate_hz
+        steps = None
+        self.refs = []
+        for i, (plant, ctrl, traj) in enumerate(zip(plants, controllers, trajectories)):
+            p = ctrl.params
+            traj.check_workspace(p)
+            if abs(plant.params.control.rate_hz - p.control.rate_hz) > 1e-9:
+                raise ValueError(f"control rate: plant steps at {plant.params.control.rate_hz} Hz, controller at "
+                                 f"{p.control.rate_hz} Hz")
+            if abs(p.control.rate_hz - rate) > 1e-9 or p.n_joints != n:
+                raise ValueError(f"lockstep run {i}: every controller needs N = {n} and {rate} Hz")
+            length = int(round(traj.duration * rate)) + 1
+            if steps is not None and length != steps:
+                raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {steps}")
+            steps = length
+            self.refs.append(ctrl.motor_reference(traj.sample(np.arange(steps) / rate)))
+        self.steps = steps
+        self.m = m = controllers[0].params.n_cables
+        if any(c.params.n_cables != m for c in controllers):
+            raise ValueError(f"lockstep: every controller needs the same number of cables ({m})")
+        self.compiled = all(isinstance(c, ComputedTorqueController) for c in controllers)
+        for plant, ctrl, ref in zip(plants, controllers, self.refs):
+            if reset:
+                plant.reset(alpha0=ref.alpha[0])
+            ctrl.reset(ref.alpha[0], plant.encoders())
+        if self.compiled:
+            self.tables = np.stack([reference_table(r) for r in self.refs])
+            self.state = ControllerState.stack([c.state for c in controllers])
+            self.status = self.state.status
+        self.batch, self.writers = None, [None] * self.K
+
+    def open(self, log_paths, run_infos) -> None:
+        """The records, the plants' batch, the logs and the live view."""
+        K, n, m, steps, rate = self.K, self.n, self.m, self.steps, self.rate
+        plants = self.plants
+        # The plant's seed, effects and parameters make `neck-sim replay` of a log exact.
+        self.infos = [{**plant_run_info(plant), "trajectory": traj.name, "duration_s": traj.duration,
+                       "law": int(ctrl.law), "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
+                      for plant, ctrl, traj, info in zip(plants, self.controllers, self.trajectories, run_infos)]
+        self.rec = rec = Recorder(n, m, steps, runs=K, truth=True, reference=True, estimate=True)
+        for i, ref in enumerate(self.refs):
+            rec.alpha_d[i] = ref.alpha
+        self.columns = output_slices(n, m)
+        self.outs = np.zeros((K, steps, max(sl.stop for sl in self.columns.values())))   # rows of output_slices
+        self.forces = self.outs[:, :, self.columns["forces"]]
+        self.theta = np.empty((K, m))
+        self.errors: list = [None] * K
+        self.alive = np.ones(K, dtype=bool)
+        # Plants step together in one PlantBatch; anything else with the plant's interface (a wrapped
+        # plant, a stand-in) steps alone through its own step().
+        self.batched = [i for i, p in enumerate(plants) if type(p) is Plant and not p.steps_alone]
+        self.alone = [i for i in range(K) if i not in self.batched]
+        self.rows = slice(None) if not self.alone else np.array(self.batched, dtype=np.intp)
+        self.batch = batch = PlantBatch([plants[i] for i in self.batched]) if self.batched else None
+        if batch is not None:
+            rec.t[self.rows] = (batch.k[:, None] + batch.nsub * np.arange(steps)) * batch.dt
+        self.position = {i: j for j, i in enumerate(self.batched)}         # run -> its row in the batch
+        self.writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, self.infos)]
+        self.live = active_live_view() if K == 1 else None
+        self.shown = [0, 0]            # periods and camera frames of the run already sent to the live view
+        if self.live is not None:
+            self.live.new_run()
+            self.live_every = max(1, int(rate / self.live.rate_hz))        # periods per scene frame
+
+    # -- stepping
+    def advance(self, progress: bool) -> None:
+        """Every period of the runs: compiled chunks between events when every controller is
+        compiled and every plant in the native batch, else (and at the events) period by period."""
+        from tqdm.auto import tqdm
+
+        desc = self.trajectories[0].name + (f" law {int(self.controllers[0].law)}" if self.K == 1 else f" x {self.K}")
+        bar = tqdm(total=self.steps, desc=desc, unit="step", disable=not progress, mininterval=0.5)
+        fused = FUSE_PERIODS and self.compiled and not self.alone and self.batch is not None
         if fused:
-            step_fn, step_args = batch.native_step()
-            kernel_args = (batch.encoders(), batch.out, theta, rec_theta, rec_truth, state.values, state.flags,
-                           state.const, state.cables, state.linkage, state.geometry, state.cases, state.Z, tables,
-                           outs, status, alive, columns["forces"].start, batch._fmax, batch.forces,
-                           batch.delay_line(), step_fn, step_args)
+            self.kernel_args = self._kernel_args()
         k = 0
-        while k < steps:
-            if live is not None and k - shown[0] >= live_every and alive[0]:
-                show(k)
+        while k < self.steps:
+            if self.live is not None and k - self.shown[0] >= self.live_every and self.alive[0]:
+                self.show(k)
             # stage: how much of period k is done (0 nothing, 1 recorded and controlled, 2 also stepped)
             stage = 0
             if fused:
-                # the quiet periods in one call, and the next one (an event) recorded and controlled
-                quiet = min(batch.quiet_periods(), steps - k, _MAX_FUSED)
-                previous = _DISPATCH.enter("native") if quiet else None     # quiet periods: native only
-                try:
-                    k_end, stage, fatal = _run_periods(k, k + quiet, int(k + quiet < steps), *kernel_args)
-                finally:
-                    if quiet:
-                        _DISPATCH.leave(previous)
-                if fatal < 0:
-                    raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
-                batch.ran_periods(k_end - k + (stage == 2))
+                k_end, stage = self.fused(k)
                 bar.update(k_end - k)
                 k = k_end
                 if stage == 0:
                     continue
             if stage == 0:
-                if batch is not None:
-                    theta[rows] = rec_theta[rows, k] = batch.encoders()
-                    rec_truth[rows, k] = batch.out
-                for i in alone:
-                    if alive[i]:
-                        plant = plants[i]
-                        rec_t[i, k] = plant.time
-                        rec_theta[i, k] = theta[i] = plant.encoders()
-                        truth = plant.truth()
-                        for name, sl in truth_cols.items():
-                            rec_truth[i, k, sl] = getattr(truth, name)
-                if compiled:
-                    advance(state, theta, k, tables, outs)
-                else:
-                    for i in np.flatnonzero(alive):
-                        try:
-                            # a copy: theta's row is overwritten next period and a controller may keep it
-                            _store(outs[i, k], controllers[i].step(theta[i].copy(), refs[i].at(k)), columns)
-                        except (ValueError, RuntimeError) as exc:
-                            fail(i, t_of(i, k), exc)
+                self.record(k)
+                self.control(k)
             if stage == 2:                            # stepped by _run_periods: a plant diverged
-                for j in batch.stop_diverged():
-                    fail(batched[j], t_of(batched[j], k), batch.errors[j])
+                for j in self.batch.stop_diverged():
+                    self.fail(self.batched[j], self.t_of(self.batched[j], k), self.batch.errors[j])
             else:
-                if compiled and np.count_nonzero(status):     # a quarter of status.any()'s call overhead
-                    for i in np.flatnonzero((status != 0) & alive):
-                        fail(i, t_of(i, k), step_error(int(status[i]), state.values[i, 0, :n],
-                                                       controllers[i].params.geometry.alpha_max))
-                if batch is not None:
-                    for j in batch.step(forces[rows, k]):
-                        fail(batched[j], t_of(batched[j], k), batch.errors[j])
-                    if batch._framed:
-                        for j, frame in enumerate(batch.frames):
-                            if frame is not None:
-                                cameras[batched[j]][0].append(frame[0])
-                                cameras[batched[j]][1].append(frame[1])
-                for i in alone:
-                    if alive[i]:
-                        plant = plants[i]
-                        try:
-                            plant.step(forces[i, k])
-                        except (ValueError, RuntimeError) as exc:
-                            fail(i, rec_t[i, k], exc)
-                            continue
-                        frame = plant.camera_frame()
-                        if frame is not None:
-                            cameras[i][0].append(frame[0])
-                            cameras[i][1].append(frame[1])
+                self.step(k)
             k += 1
             bar.update(1)
         bar.close()
-        if live is not None and alive[0]:
-            show(steps)
+        if self.live is not None and self.alive[0]:
+            self.show(self.steps)
+
+    def _kernel_args(self) -> tuple:
+        step, state, rec = self.batch.fused_step(), self.state, self.rec
+        return (step.encoders, step.out, self.theta, rec.theta, rec.truth, state.values, state.flags, state.const,
+                state.cables, state.linkage, state.geometry, state.cases, state.Z, self.tables, self.outs,
+                self.status, self.alive, self.columns["forces"].start, step.f_max, step.forces, step.delay_line,
+                step.address, step.args)
+
+    def fused(self, k: int) -> tuple[int, int]:
+        """The quiet periods from k in one compiled call, and the next one (an event) recorded and
+        controlled; returns (the period reached, its stage)."""
+        batch = self.batch
+        quiet = min(batch.quiet_periods(), self.steps - k, _MAX_FUSED)
+        previous = DISPATCH.enter("native") if quiet else None     # quiet periods: native only
+        try:
+            k_end, stage, fatal = _run_periods(k, k + quiet, int(k + quiet < self.steps), *self.kernel_args)
+        finally:
+            if quiet:
+                DISPATCH.leave(previous)
+        if fatal < 0:
+            raise RuntimeError("PlantBatch: a plant's sizes changed (C struct disagrees with N, m)")
+        batch.ran_periods(k_end - k + (stage == 2))
+        return k_end, stage
+
+    def record(self, k: int) -> None:
+        """The encoders and the truth at the start of period k."""
+        rec, batch, rows = self.rec, self.batch, self.rows
         if batch is not None:
-            rec_t[rows] = (start[:, None] + batch.nsub * np.arange(steps)) * batch.dt
+            self.theta[rows] = rec.theta[rows, k] = batch.encoders()
+            rec.truth[rows, k] = batch.out
+        for i in self.alone:
+            if self.alive[i]:
+                plant = self.plants[i]
+                rec.sample(k, plant.time, plant.encoders(), truth=plant.truth(), run=i)
+                self.theta[i] = rec.theta[i, k]
+
+    def control(self, k: int) -> None:
+        """The controllers' step of period k, into ``outs``."""
+        if self.compiled:
+            advance(self.state, self.theta, k, self.tables, self.outs)
+            return
+        for i in np.flatnonzero(self.alive):
+            try:
+                # a copy: theta's row is overwritten next period and a controller may keep it
+                _store(self.outs[i, k], self.controllers[i].step(self.theta[i].copy(), self.refs[i].at(k)),
+                       self.columns)
+            except (ValueError, RuntimeError) as exc:
+                self.fail(i, self.t_of(i, k), exc)
+
+    def step(self, k: int) -> None:
+        """The controllers' failures of period k, then the plants' step with its forces."""
+        batch, rec = self.batch, self.rec
+        if self.compiled and np.count_nonzero(self.status):     # a quarter of status.any()'s call overhead
+            for i in np.flatnonzero((self.status != 0) & self.alive):
+                self.fail(i, self.t_of(i, k), step_error(int(self.status[i]), self.state.values[i, 0, :self.n],
+                                                         self.controllers[i].params.geometry.alpha_max))
+        if batch is not None:
+            for j in batch.step(self.forces[self.rows, k]):
+                self.fail(self.batched[j], self.t_of(self.batched[j], k), batch.errors[j])
+            if batch.framed:
+                for j, frame in enumerate(batch.frames):
+                    rec.frame(frame, run=self.batched[j])
+        for i in self.alone:
+            if self.alive[i]:
+                plant = self.plants[i]
+                try:
+                    plant.step(self.forces[i, k])
+                except (ValueError, RuntimeError) as exc:
+                    self.fail(i, rec.t[i, k], exc)
+                    continue
+                rec.frame(plant.camera_frame(), run=i)
+
+    def fail(self, i: int, t: float, exc: Exception) -> None:
+        """Run i stops at time t (s) because of ``exc`` (raised with ``stop_on_error``)."""
+        err = RuntimeError(f"closed loop stopped at t = {t:.3f} s: {exc}")
+        if self.stop_on_error:
+            raise err from exc
+        err.__cause__ = exc
+        self.errors[i] = err
+        self.alive[i] = False
+        if self.compiled:
+            self.status[i] = self.status[i] or -1       # the controller stops with its plant
+        j = self.position.get(i)
+        if j is not None and self.batch.active[j]:
+            self.batch.stop(j, err)                     # the plant stops with its controller
+
+    def t_of(self, i: int, k: int) -> float:
+        """Time of period k of run i (s)."""
+        return self.rec.t[i, k]
+
+    # -- recording and results
+    def _outputs(self, i: int, rows: slice) -> None:
+        """The controller's commanded forces and estimate of run i over ``rows`` into the record."""
+        cols = self.columns
+        self.rec.force[i, rows] = self.outs[i, rows, cols["forces"]]
+        self.rec.alpha_hat[i, rows] = self.outs[i, rows, cols["alpha_hat"]]
+
+    def show(self, k1: int) -> None:
+        """Periods [shown, k1) of the (single) run to the live view: between compiled chunks."""
+        k0, f0 = self.shown
+        self._outputs(0, slice(k0, k1))
+        self.rec.write(self.live, 0, rows=slice(k0, k1), frames=slice(f0, None))
+        self.shown[:] = [k1, len(self.rec.camera_t[0])]
+
+    def results(self) -> list:
+        """Each run's RunResult (its log written and closed), or the error that stopped it."""
         results = []
-        for i in range(K):
-            if errors[i] is not None:
-                if writers[i] is not None:
-                    writers[i].abort()
-                results.append(errors[i])
+        for i in range(self.K):
+            if self.errors[i] is not None:
+                if self.writers[i] is not None:
+                    self.writers[i].abort()
+                results.append(self.errors[i])
                 continue
-            rec = {"t": rec_t[i], "theta": rec_theta[i],
-                   **{name: rec_truth[i, :, sl] for name, sl in truth_cols.items() if name != "theta"}}
-            rec["loop_gap"] = rec["loop_gap"][:, 0]
-            results.append(_result(rec, outs[i], refs[i], cameras[i], infos[i], writers[i], columns))
-    except BaseException:
-        for w in writers:
+            results.append(self._result(i))
+        return results
+
+    def _result(self, i: int) -> RunResult:
+        rec, writer = self.rec, self.writers[i]
+        self._outputs(i, slice(None))
+        if writer is not None:
+            rec.write(writer, i)
+            writer.close()
+        cols = {name: self.outs[i][:, sl] for name, sl in self.columns.items()}
+        camera_t, camera_alpha = rec.camera(i)
+        arrays = dict(t=rec.t[i], theta=rec.theta[i], alpha_hat=cols["alpha_hat"], force=cols["forces"],
+                      requested=cols["requested"], saturated=cols["saturated"] > 0.5,
+                      elongation_hat=cols["elongation"], gamma=cols["gamma"],
+                      **{name: rec.truth_column(name, i) for name in ("alpha", "alpha_dot", "tension", "elongation",
+                                                                        "loop_gap")})
+        alpha_d = self.refs[i].alpha
+        metrics = compute_metrics(arrays["t"], alpha_d, arrays["alpha_hat"], arrays["alpha"], arrays["tension"],
+                                  arrays["force"], arrays["saturated"], camera_t, camera_alpha)
+        return RunResult(alpha_d=alpha_d, camera_t=camera_t, camera_alpha=camera_alpha, metrics=metrics,
+                         info=self.infos[i], log_path=None if writer is None else writer.path, **arrays)
+
+    def abort(self) -> None:
+        """A failure outside the runs: no log is left."""
+        for w in self.writers:
             if w is not None:
                 w.abort()
-        raise
-    finally:
-        if batch is not None:
-            batch.close()
-    return results
+
+    def close(self) -> None:
+        """Hand the plants' stepping state back to them."""
+        if self.batch is not None:
+            self.batch.close()
 
 
 def _store(row: np.ndarray, out, columns: dict) -> None:
     """A controller's ControlStep into its output row (columns of :func:`output_slices`)."""
     for name, sl in columns.items():
         row[sl] = getattr(out, name)
-
-
-def _write_topics(writer, t, rec: dict, cols: dict, alpha_d, camera_t, camera_alpha) -> None:
-    """Periods t (T,) s of a run to the contract topics of ``writer`` (a LogWriter or a LiveView):
-    ``rec`` theta and the truth's columns, ``cols`` the controller's outputs, each (T, ...)."""
-    writer.write_batch("motors", t, rec["theta"], cols["forces"])
-    writer.write_batch("reference", t, alpha_d)
-    writer.write_batch("estimate", t, cols["alpha_hat"])
-    writer.write_batch("truth", t, rec["alpha"], rec["alpha_dot"], rec["tension"], rec["elongation"])
-    writer.write_batch("camera", camera_t, camera_alpha)
-
-
-def _result(rec: dict, out: np.ndarray, ref, camera, info: dict, writer, columns: dict) -> RunResult:
-    """The RunResult of one finished run; its log (if any) written and closed."""
-    cols = {name: out[:, sl] for name, sl in columns.items()}
-    n = cols["alpha_hat"].shape[1]
-    camera_t = np.asarray(camera[0], dtype=float).reshape(-1)
-    camera_alpha = np.asarray(camera[1], dtype=float).reshape(-1, n)
-    if writer is not None:
-        _write_topics(writer, rec["t"], rec, cols, ref.alpha, camera_t, camera_alpha)
-        writer.close()
-    rec = dict(rec, alpha_hat=cols["alpha_hat"], force=cols["forces"], requested=cols["requested"],
-               saturated=cols["saturated"] > 0.5, elongation_hat=cols["elongation"], gamma=cols["gamma"])
-    metrics = compute_metrics(rec["t"], ref.alpha, rec["alpha_hat"], rec["alpha"], rec["tension"], rec["force"],
-                              rec["saturated"], camera_t, camera_alpha)
-    return RunResult(alpha_d=ref.alpha, camera_t=camera_t, camera_alpha=camera_alpha, metrics=metrics, info=info,
-                     log_path=None if writer is None else writer.path, **rec)

@@ -19,6 +19,7 @@ from controllers.closed_loop import RunResult, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import make_trajectory
 from neck_sim.params import NeckParams
+from neck_sim.plant_spec import PlantSpec
 
 __all__ = ["RunSpec", "run_one", "run_all"]
 
@@ -30,7 +31,7 @@ class RunSpec:
     ``params``: the plant's constants; ``controller_params``: the controller's model (default the
     same); ``trajectory``: a name understood by :func:`controllers.trajectories.make_trajectory`
     with ``duration_scale``; ``effects``: a :class:`neck_sim.effects.Effects` hidden in the plant;
-    ``log_path``: MCAP of the run, or None.
+    ``log_path``: MCAP of the run, or None.  The plant the run drives is :attr:`plant`.
     """
 
     label: str
@@ -46,12 +47,15 @@ class RunSpec:
     log_path: str | None = None
     run_info: Mapping[str, Any] = field(default_factory=dict)
 
+    @property
+    def plant(self) -> PlantSpec:
+        """The plant of this run (params, effects, seed, cable model; default timestep)."""
+        return PlantSpec(self.params, self.effects, seed=self.seed, rigid_cables=self.rigid_cables)
+
 
 def run_one(spec: RunSpec, progress: bool = False) -> RunResult:
     """Build the plant, controller and trajectory of ``spec`` and run them."""
-    from neck_sim.plant import Plant
-
-    plant = Plant(spec.params, effects=spec.effects, seed=spec.seed, rigid_cables=spec.rigid_cables)
+    plant = spec.plant.build()
     model = spec.params if spec.controller_params is None else spec.controller_params
     controller = ComputedTorqueController(model, spec.law, **dict(spec.controller_kwargs))
     # the trajectory is fitted to the neck that moves (the plant), not to the controller's model:

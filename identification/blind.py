@@ -86,9 +86,8 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
     from tqdm.auto import tqdm
 
     from identification.excitation import predict_run
-    from neck_sim.logs import LogWriter
-    from neck_sim.plant import Plant
-    from neck_sim.replay import plant_run_info
+    from neck_sim.plant_spec import PlantSpec
+    from neck_sim.recorder import Recorder
 
     n = plant_params.n_joints
     model = default_params(n) if model_params is None else model_params
@@ -99,42 +98,28 @@ def run_log(path, plant_params: NeckParams, effects: Effects | None = None, *, t
     t = np.arange(steps) * dt
     s = traj.sample(t)
     ff = predict_run(s.alpha, s.alpha_dot, s.alpha_ddot, t, model)
-    plant = Plant(plant_params, effects or Effects(), seed=seed, rigid_cables=rigid_cables)
+    spec = PlantSpec(plant_params, effects, seed=seed, rigid_cables=rigid_cables)
+    plant = spec.build()
     plant.reset(alpha0=s.alpha[0])
     act = plant_params.actuation
     f_lo, f_hi = act.f_min, act.f_max
     a = dt / (gains.tau + dt)
     info = {"generator": "identification.blind.run_log", "trajectory": traj.name,
-            **plant_run_info(plant), **(run_info or {})}
+            **PlantSpec.of(plant).to_record(), **(run_info or {})}
     theta_prev = plant.encoders()
     speed = np.zeros(n + 1)
-    theta_log = np.empty((steps, n + 1))
-    force_log = np.empty((steps, n + 1))
-    truth_log = [] if write_truth else None
-    frames = []
+    rec = Recorder(n, plant_params.n_cables, steps, truth=write_truth, reference=True)
+    rec.alpha_d[0] = s.alpha
     for k in tqdm(range(steps), desc="blind log", unit="step", disable=not progress, mininterval=0.5):
         theta = plant.encoders()
         speed += a * ((theta - theta_prev) / dt - speed)
         theta_prev = theta
         f = ff.force[k] + gains.k_p * (ff.theta[k] - theta) + gains.k_d * (ff.theta_dot[k] - speed)
         f = np.clip(f, f_lo, f_hi)
-        theta_log[k], force_log[k] = theta, f
-        if truth_log is not None:
-            truth_log.append(plant.truth())
+        rec.sample(k, t[k], theta, f, plant.truth() if write_truth else None)
         plant.step(f)
-        frame = plant.camera_frame()
-        if frame is not None:
-            frames.append(frame)
-    with LogWriter(path, plant_params, mjcf_xml=plant.xml, run_info=info) as w:
-        for k in range(steps):
-            tk = float(t[k])
-            w.motors(tk, theta_log[k], force_log[k])
-            w.reference(tk, s.alpha[k])
-            if truth_log is not None:
-                tr = truth_log[k]
-                w.truth(tk, tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
-        for tc, ac in frames:
-            w.camera(tc, ac)
+        rec.frame(plant.camera_frame())
+    rec.write_log(path, plant_params, mjcf_xml=plant.xml, run_info=info)
     return os.fspath(path)
 
 

@@ -34,7 +34,7 @@ from neck_sim.params import NeckParams
 
 __all__ = ["THRESHOLDS", "Row", "CrossvalReport", "crossval", "format_table"]
 
-THRESHOLDS = {           # quantity -> (kind, threshold); issue 3 item 4
+THRESHOLDS = {           # quantity -> (kind, threshold) of the MuJoCo vs analytic table
     "lengths": ("abs", 1e-9),
     "Z": ("rel", 1e-6),
     "M": ("rel", 1e-6),
@@ -212,7 +212,7 @@ def write_json(report: CrossvalReport, path) -> None:
     atomic_write_json(path, report.to_dict())
 
 
-# ----------------------------------------------------------------------------- dynamics (item 5)
+# ----------------------------------------------------------------------------- dynamics
 
 DYNAMICS_ALPHA0_DEG = (20.0, -10.0, 15.0)
 DYNAMICS_FORCES = (25.0, 22.0, 20.0, 30.0)
@@ -257,38 +257,40 @@ def dynamics_check(params: NeckParams, *, timestep: float | None = None, hold_du
                    free_duration: float = 1.0, alpha0=None, forces=None,
                    tolerance_deg: float = FREE_RESPONSE_TOLERANCE_DEG, gap_limit: float = LOOP_GAP_LIMIT,
                    progress: bool = False) -> DynamicsReport:
-    """Issue 3 item 5: the plant under constant antagonistic forces (default (25, 22, 20, 30) N
+    """The plant under constant antagonistic forces (default (25, 22, 20, 30) N
     from alpha0 = (20, -10, 15) deg) for ``hold_duration`` s -- loop gaps and tensions -- and
     its free response against :func:`neck_sim.analytic.simulate_elastic` (eqs 29-30, same
     parameters and forces, friction on) over the first ``free_duration`` s."""
     from neck_sim.analytic.cables import motor_angles_rigid
     from neck_sim.analytic.dynamics import simulate_elastic
-    from neck_sim.plant import Plant
+    from neck_sim.plant_spec import PlantSpec
+    from neck_sim.recorder import Recorder
 
     a_def, f_def = _default_case(params)
     a0 = a_def if alpha0 is None else np.asarray(alpha0, dtype=float)
     f = f_def if forces is None else np.asarray(forces, dtype=float)
-    plant = Plant(params, timestep=timestep)
+    plant = PlantSpec(params, timestep=timestep).build()
     plant.reset(a0)
-    steps = int(round(max(hold_duration, free_duration) * params.control.rate_hz))
-    free_steps = int(round(free_duration * params.control.rate_hz))
-    alpha = [plant.truth().alpha]
-    theta = [plant.truth().theta]
-    max_gap, max_t, finite = 0.0, 0.0, True
+    rate = params.control.rate_hz
+    steps = int(round(max(hold_duration, free_duration) * rate))
+    free_steps = int(round(free_duration * rate))
+    # row k: the state after k periods (row 0 the start)
+    rec = Recorder(params.n_joints, params.n_cables, steps + 1)
+    rec.sample(0, 0.0, plant.encoders(), f, plant.truth())
     it = range(steps)
     if progress:
         from tqdm import tqdm
         it = tqdm(it, desc="dynamics check", unit="step", mininterval=0.5)
     for k in it:
         plant.step(f)
-        tr = plant.truth()
-        if k < free_steps:
-            alpha.append(tr.alpha)
-            theta.append(tr.theta)
-        if (k + 1) / params.control.rate_hz <= hold_duration + 1e-12:
-            max_gap = max(max_gap, tr.loop_gap)
-            finite = finite and bool(np.all(np.isfinite(tr.tension)))
-            max_t = max(max_t, float(np.max(tr.tension)))
+        rec.sample(k + 1, (k + 1) / rate, plant.encoders(), f, plant.truth())
+    alpha = rec.truth_column("alpha")[:free_steps + 1]
+    theta = rec.truth_column("theta")[:free_steps + 1]
+    held = np.flatnonzero(np.arange(1, steps + 1) / rate <= hold_duration + 1e-12) + 1     # rows over the hold
+    tension = rec.truth_column("tension")[held]
+    max_gap = max(0.0, float(rec.truth_column("loop_gap")[held].max(initial=0.0)))
+    finite = bool(np.all(np.isfinite(tension)))
+    max_t = max(0.0, float(tension.max(initial=0.0)))
     ts, ref = simulate_elastic(a0, motor_angles_rigid(a0, params), lambda t: f, free_duration, params,
                                sample_dt=1.0 / params.control.rate_hz, rtol=1e-8, atol=1e-10)
     err = np.abs(np.array(alpha) - ref.alpha)

@@ -60,6 +60,8 @@ from dm_env import specs
 from neck_sim.effects import Effects
 from neck_sim.params import NeckParams, default_params
 from neck_sim.plant import Plant, Truth
+from neck_sim.plant_spec import PlantSpec
+from neck_sim.recorder import Recorder
 from neck_sim.trajectory import HOLD_TIME, MOVE_TIME, Trajectory, cycloidal_path, make_trajectory
 
 __all__ = ["load", "NeckPhysics", "TrackingTask", "NeckEnvironment", "OPTIONS", "RANDOM_DURATION",
@@ -109,6 +111,8 @@ class NeckPhysics(dm_mujoco.Physics):
         if nstep < n or nstep % n:
             raise ValueError(f"nstep: the plant steps whole control periods of {n} physics steps, got {nstep}")
         frame = None
+        # records nothing itself: the task records each environment step (one control period,
+        # NeckEnvironment's control_timestep) through its Recorder in before_step/after_step
         with self.check_invalid_state():
             for _ in range(nstep // n):
                 self._plant.step(self._forces)
@@ -180,6 +184,7 @@ class TrackingTask(base.Task):
         self._reward_tolerance, self._reward_margin = float(reward_tolerance), float(reward_margin)
         self._log_path = None if log_path is None else os.fspath(log_path)
         self._writer = None
+        self._recorder = None       # the episode's samples, for the log and the live view
         self.live = live            # a neck_sim.live.LiveView fed like the log, or None
         self._episode = -1
         self._rate = params.control.rate_hz
@@ -211,19 +216,13 @@ class TrackingTask(base.Task):
         if self.live is not None:
             self.live.new_run()
 
-    def _sinks(self) -> list:
-        return [w for w in (self._writer, self.live) if w is not None]
-
     def before_step(self, action, physics: NeckPhysics) -> None:
         physics.set_control(action)
-        sinks = self._sinks()
-        if sinks:
-            t = physics.time()
-            theta, forces, tr = physics.encoders(), physics.forces, physics.truth()
-            for w in sinks:
-                w.motors(t, theta, forces)
-                w.reference(t, self._ref[0])
-                w.truth(t, tr.alpha, tr.alpha_dot, tr.tension, tr.elongation)
+        rec = self._recorder
+        if rec is not None:
+            k = rec.append(physics.time(), physics.encoders(), physics.forces, physics.truth(), alpha_d=self._ref[0])
+            if self.live is not None:
+                rec.write(self.live, rows=slice(k, k + 1), frames=slice(0, 0))
 
     def after_step(self, physics: NeckPhysics) -> None:
         self._ref = self._reference(physics.time())
@@ -236,8 +235,11 @@ class TrackingTask(base.Task):
         else:
             self._camera = np.array(frame[1], dtype=float)
             self._camera_new = 1.0
-            for w in self._sinks():
-                w.camera(frame[0], frame[1])
+            rec = self._recorder
+            if rec is not None:
+                rec.frame(frame)
+                if self.live is not None:
+                    rec.write(self.live, rows=slice(0, 0), frames=slice(-1, None))
 
     # -- specs
     def action_spec(self, physics: NeckPhysics) -> specs.BoundedArray:
@@ -305,19 +307,26 @@ class TrackingTask(base.Task):
         return self._log_path.format(episode=ep) if "{episode" in self._log_path else self._log_path
 
     def _open_log(self, physics: NeckPhysics) -> None:
+        """A new episode's recorder (for its log and the live view) and its log, opened now (a path
+        that cannot be written fails at reset) and written from the recorder when it closes."""
         self.close_log()
+        if self._log_path is None and self.live is None:
+            return
+        plant = physics.plant
+        self._recorder = Recorder(self._n, self.params.n_cables, reference=True)
         if self._log_path is None:
             return
         from neck_sim.logs import LogWriter
-        plant = physics.plant
         info = {"source": "neck_sim.env", "episode": self._episode, "trajectory": getattr(self.trajectory, "name", "custom"),
                 "effects": list(plant.effects.names()), "plant_seed": plant.seed}
         self._writer = LogWriter(self.log_file(), plant.params, mjcf_xml=plant.xml, run_info=info)
 
     def close_log(self) -> None:
         """Finish the current episode's MCAP file (written atomically on close)."""
+        rec, self._recorder = self._recorder, None
         w, self._writer = self._writer, None
         if w is not None:
+            rec.write(w)
             w.close()
 
 
@@ -405,8 +414,8 @@ def load(n_joints: int = 3, seed: int | None = None, **options) -> NeckEnvironme
     elif params.n_joints != n_joints and n_joints != 3:
         raise ValueError(f"n_joints: {n_joints} disagrees with params (n_joints = {params.n_joints})")
     effects = options.get("effects") or Effects()
-    plant = Plant(params, effects, seed=0, timestep=options.get("timestep"),
-                  rigid_cables=bool(options.get("rigid_cables", False)))
+    plant = PlantSpec(params, effects, seed=0, timestep=options.get("timestep"),
+                      rigid_cables=bool(options.get("rigid_cables", False))).build()
 
     trajectory = options.get("trajectory", "random")
     kw = {}

@@ -1,8 +1,8 @@
 """Re-simulate a logged run open loop and measure how far the new run drifts (``neck-sim replay``).
 
 The plant is rebuilt from the log's ``run`` record (plant parameters, effects, seed, timestep,
-rigid cables: what :func:`plant_run_info` stores; nominal ``neck`` constants and no effects when
-the record lacks them), reset to the logged initial pose (``/neck/truth`` alpha at the first
+rigid cables: a :class:`neck_sim.plant_spec.PlantSpec`; nominal ``neck`` constants and no effects
+when the record lacks them), reset to the logged initial pose (``/neck/truth`` alpha at the first
 sample, else the first camera frame), and driven with the logged commanded forces, one control
 period per ``/neck/motors`` sample.  Before each step the replayed encoders and true joint angles
 are compared with the logged ones at the same time: an identical plant reproduces the run to
@@ -20,16 +20,17 @@ import numpy as np
 
 from neck_sim.effects import Effects
 from neck_sim.logs import Log, LogWriter, read_log
-from neck_sim.params import NeckParams, ParameterError, from_dict, to_dict
+from neck_sim.params import NeckParams, ParameterError
+from neck_sim.plant_spec import PlantSpec
+from neck_sim.recorder import Recorder
 
-__all__ = ["plant_run_info", "plant_from_log", "replay", "ReplayResult"]
+__all__ = ["plant_run_info", "plant_from_log", "plant_spec_from_log", "replay", "ReplayResult"]
 
 
 def plant_run_info(plant) -> dict:
     """Run metadata that lets :func:`replay` rebuild ``plant`` exactly (pass it to LogWriter's
-    ``run_info``): seed, effects, the plant's parameters, timestep, rigid cables."""
-    return {"seed": plant.seed, "effects": plant.effects.to_dict(), "plant_params": to_dict(plant.params),
-            "timestep": plant.timestep, "rigid_cables": bool(plant.rigid_cables)}
+    ``run_info``): :meth:`PlantSpec.to_record` of the plant's spec."""
+    return PlantSpec.of(plant).to_record()
 
 
 def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effects | None = None,
@@ -40,40 +41,30 @@ def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effec
     changes applied on top (``{"friction.c_s": 0.6}``).  Returns (plant, notes) where notes list
     what had to be assumed.
     """
-    from neck_sim.plant import Plant
+    spec, notes = plant_spec_from_log(log, params=params, effects=effects, seed=seed, changes=changes,
+                                      backend=backend)
+    return spec.build(), notes
 
-    notes = []
-    if params is None:
-        recorded = log.run_value("plant_params")
-        if recorded is None:
-            params = log.params
-            notes.append("run record has no plant_params: using the nominal constants of the neck record")
-        else:
-            params = from_dict(recorded)
-    if (params.n_joints, params.n_cables) != (log.params.n_joints, log.params.n_cables):
-        raise ParameterError(f"params: the parameter file describes a neck of N = {params.n_joints} joints and "
-                             f"{params.n_cables} cables but the log {log.path} was recorded with N = "
+
+def plant_spec_from_log(log: Log, *, params: NeckParams | None = None, effects: Effects | None = None,
+                        seed: int | None = None, changes: dict | None = None,
+                        backend: str | None = None) -> tuple[PlantSpec, list[str]]:
+    """(:class:`PlantSpec`, notes) of :func:`plant_from_log`, before the plant is built."""
+    given = {name: value for name, value in (("params", params), ("effects", effects), ("seed", seed))
+             if value is not None}
+    # a replaced entry is not read from the record at all (a malformed one must not stop the replay)
+    skip = {{"params": "plant_params"}.get(name, name) for name in given}
+    record = {key: value for key, value in log.run_info.items() if key not in skip}
+    spec, assumed = PlantSpec.read_record(record, nominal=log.params)
+    spec = spec.replace(backend=backend, **given)
+    p = spec.params
+    if (p.n_joints, p.n_cables) != (log.params.n_joints, log.params.n_cables):
+        raise ParameterError(f"params: the parameter file describes a neck of N = {p.n_joints} joints and "
+                             f"{p.n_cables} cables but the log {log.path} was recorded with N = "
                              f"{log.params.n_joints} and {log.params.n_cables} cables")
     if changes:
-        params = params.replace(**changes)
-    if effects is None:
-        recorded = log.run_value("effects")
-        if recorded is None:
-            effects = Effects()
-            notes.append("run record has no effects: assuming none")
-        else:
-            effects = Effects.from_dict(recorded)
-    if seed is None:
-        recorded = log.run_value("seed")
-        if isinstance(recorded, (int, float)) and not isinstance(recorded, bool):
-            seed = int(recorded)
-        else:
-            seed = 0
-            notes.append(f"run record seed = {recorded!r}: using seed 0 (it only changes the camera noise)")
-    timestep = log.run_value("timestep")
-    rigid = bool(log.run_value("rigid_cables") or False)
-    plant = Plant(params, effects, seed=seed, timestep=timestep, rigid_cables=rigid, backend=backend)
-    return plant, notes
+        spec = spec.replace(params=p.replace(**changes))
+    return spec, [text for name, text in assumed.items() if name not in given]
 
 
 @dataclass(frozen=True)
@@ -176,25 +167,20 @@ def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, ef
     plant.reset(alpha0=alpha0)
 
     n_steps = len(m.t)
-    theta = np.empty_like(m.theta)
-    alpha = np.empty((n_steps, plant.n_joints))
+    rec = Recorder(plant.n_joints, plant.params.n_cables, n_steps)
+    # opened before the run: a log that cannot be written fails before the simulation, not after it
     recording = contextlib.nullcontext() if output is None else LogWriter(
         output, log.params, mjcf_xml=plant.xml, run_info={"replay_of": os.path.abspath(log.path),
                                                           **plant_run_info(plant)})
     from tqdm.auto import tqdm
     with recording as writer:
         for k in tqdm(range(n_steps), desc="replay", unit="step", disable=not progress, mininterval=0.5):
-            t = m.t[0] + plant.time
-            theta[k] = plant.encoders()
-            truth = plant.truth()
-            alpha[k] = truth.alpha
+            rec.sample(k, m.t[0] + plant.time, plant.encoders(), m.force[k], plant.truth())
             plant.step(m.force[k])
-            if writer is not None:
-                writer.motors(t, theta[k], m.force[k])
-                writer.truth(t, truth.alpha, truth.alpha_dot, truth.tension, truth.elongation)
-                frame = plant.camera_frame()
-                if frame is not None:
-                    writer.camera(m.t[0] + frame[0], frame[1])
+            rec.frame(plant.camera_frame(), offset=m.t[0])
+        if writer is not None:
+            rec.write(writer)
+    theta, alpha = rec.theta[0], np.ascontiguousarray(rec.truth_column("alpha"))
     return ReplayResult(m.t, theta, m.theta, alpha, alpha_log, plant.params.sensors.encoder_resolution,
                         tuple(notes), None if output is None else os.fspath(output))
 

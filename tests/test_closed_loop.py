@@ -75,7 +75,7 @@ def test_plant_and_controller_rates_must_agree(params):
         run_closed_loop(Plant(slow), ComputedTorqueController(params, 2), traj, progress=False)
 
 def test_control_test_on_the_default_plant(params):
-    """Acceptance (issue 5, item 7): the whole §7 trajectory (15 s at 500 Hz) on the default
+    """Acceptance: the whole §7 trajectory (15 s at 500 Hz) on the default
     MuJoCo plant, law 2: mean tracking error under 1 deg and no slack cable."""
     traj = control_test_trajectory(params)
     res = run_closed_loop(Plant(params), ComputedTorqueController(params, 2), traj, progress=False)

@@ -1,4 +1,4 @@
-"""The compiled control step (issue 13 item 1) against the batched numpy model, and lockstep runs.
+"""The compiled control step against the batched numpy model, and lockstep runs.
 
 The numpy side composes the public batched functions (eq 35 increment, linkage dynamics, Z,
 tension distribution, eq 58) with the PID of eq (59) written here; the compiled side is one

@@ -22,6 +22,7 @@ import pytest
 import neck_sim.analytic as an
 from neck_sim import effects as E
 from neck_sim import plant as P
+from neck_sim.native import DISPATCH
 from neck_sim.params import default_params, example_params
 
 from identification.candidates import FitContext
@@ -78,7 +79,7 @@ def test_native_kernel_is_the_python_reference(cls, params, rng):
     mag = rng.uniform(0.1, 3.0, 4)
     eff = cls(**{cls.magnitude_field: tuple(mag)}, **_shape(cls, rng))
     pl = P.Plant(params, effects=E.Effects.of(eff), backend="native")
-    lib, out = P._DISPATCH.lib, (ctypes.c_double * 2)()
+    lib, out = DISPATCH.lib, (ctypes.c_double * 2)()
     for _ in range(100):
         j = int(rng.integers(4))
         w, t = rng.normal(0, 20), rng.uniform(0, 100)

@@ -182,3 +182,26 @@ def test_forces_outside_the_motor_range_are_clipped_as_the_plant_clips_them(logg
     enc, stamps, alpha = _serial(p, None, short)
     np.testing.assert_array_equal(out.encoders[0], enc)
     np.testing.assert_array_equal(out.camera_alpha[0], alpha[: short.camera_t.size])
+
+
+def test_logs_roll_out_on_a_dask_cluster_as_here(logged):
+    from distributed import LocalCluster
+
+    from controllers.campaign import ExecutorSpec
+    from identification.output_error.rollouts import rollout_logs
+
+    p, log = logged
+    exp = Experiment.from_log(log)
+    halves = [Experiment(exp.force[:300], exp.period, exp.camera_t[exp.camera_t <= 0.6], exp.alpha0, name="a"),
+              Experiment(exp.force[300:600], exp.period, exp.camera_t[exp.camera_t <= 0.6], exp.alpha0, name="b")]
+    sets = _sets(p)[:2]
+    here = rollout_logs(halves, sets, integrator=INTEGRATOR, nthread=1)
+    with LocalCluster(host="127.0.0.1", protocol="tcp", n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address="127.0.0.1:0", silence_logs=40) as cluster:
+        there = rollout_logs(halves, sets, integrator=INTEGRATOR, nthread=2,
+                             executor=ExecutorSpec(cluster=cluster.scheduler_address))
+    for h, t, e in zip(here, there, halves):
+        np.testing.assert_array_equal(h.encoders, t.encoders)
+        np.testing.assert_array_equal(h.camera_alpha, t.camera_alpha)
+        np.testing.assert_array_equal(h.encoders, rollout(e, sets, integrator=INTEGRATOR, nthread=1).encoders)
+    assert not np.array_equal(here[0].encoders, here[1].encoders)

@@ -1,4 +1,4 @@
-"""The simulated prototype: API, sensors, callbacks (process-global), dynamics (issue 3 item 5), effects."""
+"""The simulated prototype: API, sensors, callbacks (process-global), dynamics (against the analytic model), effects."""
 
 import ctypes
 import gc
@@ -11,6 +11,7 @@ import pytest
 import neck_sim.analytic as an
 from neck_sim import effects as E
 from neck_sim import plant as P
+from neck_sim.native import DISPATCH, log_warning
 from neck_sim.mjcf import build_xml
 from neck_sim.params import default_params
 
@@ -204,7 +205,7 @@ def test_native_force_laws_are_the_definitions(params, rng):
     eff = E.Effects.of(E.ViscousFriction(0.3, cables=(1, 3)), E.StribeckFriction(df=4.0, speed=3.0, smoothing=0.7),
                        E.PulleyFriction(mu=(0.1, 0.2), cables=(0, 2)))
     pl = P.Plant(params, effects=eff, backend="native")
-    lib = P._DISPATCH.lib
+    lib = DISPATCH.lib
     out = (ctypes.c_double * 2)()
     for _ in range(400):
         j = int(rng.integers(4))
@@ -254,12 +255,12 @@ def test_dead_plants_leave_the_registry(params):
     try:
         P.set_backend("native")
         gc.collect()
-        before = P._DISPATCH.lib.neck_registered()
+        before = DISPATCH.lib.neck_registered()
         pl = P.Plant(params)
-        assert P._DISPATCH.lib.neck_registered() == before + 1
+        assert DISPATCH.lib.neck_registered() == before + 1
         del pl
         gc.collect()
-        assert P._DISPATCH.lib.neck_registered() == before
+        assert DISPATCH.lib.neck_registered() == before
     finally:
         P.set_backend(previous)
 
@@ -435,8 +436,8 @@ def test_divergence_is_an_error_not_a_silent_reset(tmp_path, monkeypatch):
 
 def test_mujoco_warnings_go_to_logging(caplog):
     with caplog.at_level("DEBUG", logger="neck_sim.mujoco"):
-        P._mujoco_warning("Nan, Inf or huge value in QACC at DOF 0.\n")
-        P._mujoco_warning("Pre-allocated constraint buffer is full.")
+        log_warning("Nan, Inf or huge value in QACC at DOF 0.\n")
+        log_warning("Pre-allocated constraint buffer is full.")
     levels = [(r.levelname, r.getMessage()) for r in caplog.records]
     # fatal ones become PlantDivergedError (quoting them), so they are only debug output here
     assert levels == [("DEBUG", "MuJoCo: Nan, Inf or huge value in QACC at DOF 0."),

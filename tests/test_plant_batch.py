@@ -1,5 +1,5 @@
 """PlantBatch (K plants per control period in one native call) against the stepping sequence of
-the plant before it existed, written here from MuJoCo's own Python calls (issue 13 item 4)."""
+the plant before it existed, written here from MuJoCo's own Python calls."""
 
 import math
 
@@ -9,6 +9,7 @@ import pytest
 
 from neck_sim import effects as E
 from neck_sim import plant as P
+from neck_sim.native import DISPATCH
 
 A0 = np.radians([10.0, -8.0, 5.0])
 
@@ -49,7 +50,7 @@ class ReferenceStepper:
             self.frame_index += 1
             self.next_cam = self.camera_step(self.frame_index)
         self.frame = None
-        previous = P._DISPATCH.enter(pl.backend)
+        previous = DISPATCH.enter(pl.backend)
         try:
             for s in range(self.n):
                 d.ctrl[: len(f)] = self.command_at(self.k + s)
@@ -65,7 +66,7 @@ class ReferenceStepper:
                                     else 0.0 for eq in pl._ix.rigid_equality])
             mujoco.mj_step1(m, d)
         finally:
-            P._DISPATCH.leave(previous)
+            DISPATCH.leave(previous)
         self.k += self.n
         ix = pl._ix
         ratio = pl.params.actuation.R / pl.params.actuation.r_d
@@ -174,10 +175,10 @@ def test_a_dropped_plant_leaves_the_registry_at_once(params):
         pytest.skip("no C compiler")
     pl = P.Plant(params, backend="native")
     pl.step(np.full(params.n_cables, 20.0))
-    before = P._DISPATCH.lib.neck_registered()
+    before = DISPATCH.lib.neck_registered()
     gc.disable()
     try:
         del pl
-        assert P._DISPATCH.lib.neck_registered() == before - 1
+        assert DISPATCH.lib.neck_registered() == before - 1
     finally:
         gc.enable()

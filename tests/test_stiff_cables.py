@@ -1,4 +1,4 @@
-"""Stiff cables (issue 13 item 6): the plant stays stable and accurate up to the paper's cable
+"""Stiff cables: the plant stays stable and accurate up to the paper's cable
 damping c_a = 3000 N s/m at the default 0.5 ms timestep."""
 
 import numpy as np

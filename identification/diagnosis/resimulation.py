@@ -64,7 +64,8 @@ def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, spl
     import mujoco
     from tqdm.auto import tqdm
 
-    from neck_sim.plant import Plant
+    from neck_sim.plant_spec import PlantSpec
+    from neck_sim.recorder import Recorder
 
     t_fast = data.t_fast
     force = data.force_fast
@@ -73,7 +74,7 @@ def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, spl
     T = t_fast.size
     theta_err = np.full((T, data.C), np.nan)
     alpha_sim = np.full((T, data.n), np.nan)
-    plant = Plant(params, effects, seed=0, rigid_cables=rigid)
+    plant = PlantSpec(params, effects, seed=0, rigid_cables=rigid).build()
     bad_qacc = plant.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
     amax = 0.95 * params.geometry.alpha_max
     settle = int(round(settle_s / data.dt))
@@ -88,25 +89,22 @@ def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, spl
         bad_qacc.number = 0
         ramp = 0.5 * (1 - np.cos(np.pi * np.minimum(np.arange(settle) / (0.7 * settle), 1.0)))
         pre = [force[i0] * w for w in ramp]
-        th = np.full((i1 - i0, data.C), np.nan)
+        # rows from the first diverged step on are never sampled: they stay NaN
+        rec = Recorder(data.n, data.C, i1 - i0)
         for k in range(i0 - settle, i1):
+            f = pre[k - i0 + settle] if k < i0 else force[k]
             if k >= i0:
-                th[k - i0] = plant.encoders()
-                alpha_sim[k] = plant.truth().alpha
+                rec.sample(k - i0, t_fast[k], plant.encoders(), f, plant.truth())
             try:
-                plant.step(pre[k - i0 + settle] if k < i0 else force[k])
+                plant.step(f)
                 bad = bad_qacc.number > 0 or not np.all(np.isfinite(plant.data.qpos))
             except RuntimeError:                 # neck_sim.plant.PlantDivergedError
                 bad = True
             if bad:
-                if k >= i0:
-                    alpha_sim[k + 1:i1] = np.nan
-                    th[k + 1 - i0:] = np.nan
-                else:
-                    th[:] = np.nan
-                    alpha_sim[i0:i1] = np.nan
                 diverged.append(f"{a:.1f}-{b:.1f} s at {t_fast[max(k, i0)]:.2f} s")
                 break
+        th = rec.theta[0]
+        alpha_sim[i0:i1] = rec.truth_column("alpha")
         theta_err[i0:i1] = (th - th[0]) - (theta_log[i0:i1] - theta_log[i0])
     a_cam = np.stack([np.interp(tc, t_fast, alpha_sim[:, j], left=np.nan, right=np.nan) for j in range(data.n)], axis=1)
     e_alpha = np.degrees(a_cam - ac)

@@ -40,6 +40,7 @@ Usage::
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Sequence
@@ -53,7 +54,8 @@ from neck_sim.effects import Effects
 from neck_sim.mjcf import model_index
 from neck_sim.params import NeckParams
 
-__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "default_threads", "MAX_GROUP", "THREADS_ENV"]
+__all__ = ["Experiment", "Rollouts", "cable_params", "rollout", "rollout_logs", "default_threads", "MAX_GROUP",
+           "THREADS_ENV"]
 
 #: Environment variable that sets the threads of rollouts whose caller names none.
 THREADS_ENV = "NECK_SIM_ROLLOUT_THREADS"
@@ -242,6 +244,23 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
         _run_group(experiment, plants, nthread, quantise, enc[g0:ids.stop], cam[g0:ids.stop],
                    diverged[g0:ids.stop], at[g0:ids.stop], reasons, g0)
     return Rollouts(enc, cam, diverged, at, tuple(reasons))
+
+
+def rollout_logs(experiments: Sequence[Experiment], params: Sequence[NeckParams],
+                 effects: Effects | Sequence[Effects] | None = None, *, integrator: str, executor=None,
+                 nthread: int | None = None, quantise: bool = True) -> list[Rollouts]:
+    """:func:`rollout` of the same K parameter sets on each experiment (a multi-log fit): here one
+    after the other (``executor`` None), or one job per log on the project's campaign executor
+    (:func:`controllers.campaign.run_campaign`: an ``ExecutorSpec`` of local processes or a Dask
+    cluster, or an executor already open).  Each job runs its K rollouts on ``nthread`` threads
+    of its worker (default there: :func:`default_threads`)."""
+    from controllers.campaign import run_campaign
+
+    experiments = list(experiments)
+    job = functools.partial(rollout, params=list(params), effects=effects, integrator=integrator, nthread=nthread,
+                            quantise=quantise)
+    return run_campaign(job, experiments, executor, labels=[e.name or str(i) for i, e in enumerate(experiments)],
+                        progress=False, desc="rollouts")
 
 
 def default_threads() -> int:

@@ -7,6 +7,10 @@ zstd-compressed.  Alongside the contract topics the writer publishes Foxglove's
 ``visualization_rate_hz``) so the neck moves in Foxglove's 3D panel.  These are written when the
 log is closed (MCAP readers order messages by log_time through the index), so their chunks never
 mix with the contract topics' and cost the reader nothing.
+
+Simulated runs reach this writer through :class:`neck_sim.recorder.Recorder`, which hands it
+each topic's arrays at once (:meth:`LogWriter.write_batch`); the per-sample methods are for
+code that produces samples one at a time (a logger on hardware, a hand-written test log).
 """
 
 from __future__ import annotations
