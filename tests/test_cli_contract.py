@@ -105,6 +105,13 @@ def _input_cases(d):
         ["reproduce", "--out", str(d / "good.json")],
         ["design", "--samples", "0", "-o", str(d / "design")],
         ["render", "-o", str(d / "no-dir" / "x.png")],
+        # identify's methods: several logs need output error; its options need it; a bad model file
+        ["identify", missing + "-a.mcap", missing + "-b.mcap"],
+        ["identify", str(d / "empty.mcap"), "--model", str(d / "good.json")],
+        ["identify", str(d / "empty.mcap"), "--method", "output-error", "--model", str(d / "broken.json")],
+        ["identify", str(d / "empty.mcap"), "--method", "output-error", "--model", str(d / "good.json")],
+        ["identify", str(d / "empty.mcap"), "--method", "output-error", "--integrator", "euler-ish"],
+        ["identify", str(d / "empty.mcap"), str(d / "empty.mcap"), "--method", "output-error"],
         # a multi-line message from deep inside (the routing table of a neck the laws cannot drive)
         ["simulate", "--params", str(d / "mixed4.json"), "--law", "1", "--no-log", "--no-progress"],
     ]

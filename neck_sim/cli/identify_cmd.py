@@ -1,18 +1,38 @@
-"""`neck-sim identify LOG`: the paper's §5 identification of friction and cable stiffness from a log."""
+"""`neck-sim identify LOG [LOG ...]`: friction and cable stiffness from logs, by the paper's §5 least
+squares (one log) or by output error (re-simulating the logged forces; several logs, one parameter set)."""
 
 from __future__ import annotations
 
 import sys
 
+from identification.output_error.settings import OutputErrorSettings
 from neck_sim.cli.common import (add_force_range_argument, add_implausible_params_argument, check_params_fit_log,
-                                 check_paths, load_params_file, nonnegative_float, positive_float,
+                                 check_paths, load_params_file, nonnegative_float, positive_float, positive_int,
                                  report_input_warnings)
 
-HELP = "identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2)"
+HELP = ("identify motor friction and cable stiffness from a log's measured topics (paper §5, Tables 1-2; "
+        "--method output-error: re-simulate the logs, several at once)")
+METHODS = ("least-squares", "output-error")
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors and /neck/camera")
+    parser.add_argument("log", metavar="LOG", nargs="+",
+                        help="MCAP log with /neck/motors and /neck/camera (several: --method output-error only)")
+    parser.add_argument("--method", choices=METHODS, default="least-squares",
+                        help="least-squares: the paper's inverse-model fit (eqs 44-57), one log, seconds; "
+                             "output-error: from that estimate, re-simulate the logged forces through the plant and "
+                             "fit f_s, k, lambda, c_a per cable to the encoders and camera (minutes; several logs "
+                             "share one parameter set); see docs/identification.md (default: %(default)s)")
+    parser.add_argument("--model", metavar="FILE",
+                        help="output-error: fit this extended model (written by 'neck-sim diagnose --extended'): its "
+                             "constants and effects, the effects' magnitudes fitted too")
+    parser.add_argument("--integrator", default=None, metavar="NAME",
+                        help="output-error: implicitfast, implicit or discrete, the MuJoCo integrator of every re-simulation of the fit (default: the plant's "
+                             "choice at the start point, kept for the whole fit)")
+    parser.add_argument("--max-evaluations", type=positive_int, default=None, metavar="N",
+                        help=f"output-error: trust-region cost evaluations (each one rollout per log, besides the "
+                             f"Jacobians; default {OutputErrorSettings.max_evaluations})")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (output-error)")
     parser.add_argument("--params", metavar="FILE",
                         help="nominal constants and routing (.json/.toml, 'neck-sim params' format) instead of the "
                              "log's neck record; the tables compare with its friction and cable values per cable")
@@ -42,8 +62,30 @@ def add_arguments(parser) -> None:
                         help="control law the logged run used, for --simulators (default 1, the paper's)")
 
 
+def _check_method_options(args) -> None:
+    """One-line refusals of options that do not go with the method."""
+    oe = args.method == "output-error"
+    if len(args.log) > 1 and not oe:
+        raise ValueError(f"LOG: least squares identifies one log at a time (got {len(args.log)}); fit several "
+                         "together with --method output-error")
+    for opt, given in (("--model", args.model), ("--integrator", args.integrator),
+                       ("--max-evaluations", args.max_evaluations)):
+        if given is not None and not oe:
+            raise ValueError(f"{opt}: only with --method output-error")
+    if oe and args.start:
+        raise ValueError("--start: output error re-simulates each log from rest at its start; a window that begins "
+                         "inside a moving run cannot be replayed (use --end to shorten it)")
+    if oe and args.simulators and len(args.log) > 1:
+        raise ValueError("--simulators: compares one log; give one LOG or leave --simulators out")
+    if len(set(args.log)) < len(args.log):
+        raise ValueError("LOG: the same log given twice (it would count its data twice)")
+
+
 def run(args) -> int:
-    check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"--json": args.json}, dirs={"--plots": args.plots})
+    _check_method_options(args)
+    inputs = {("LOG" if i == 0 else f"LOG {i + 1}"): p for i, p in enumerate(args.log)}
+    check_paths(inputs={**inputs, "--params": args.params, "--model": args.model}, files={"--json": args.json},
+                dirs={"--plots": args.plots})
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
     from neck_sim.logs import read_log
@@ -58,24 +100,61 @@ def run(args) -> int:
     settings = IdentificationSettings(
         **extra, weight=args.weight, slack_threshold=args.slack_threshold, reconstruct_alpha=not args.no_alpha,
         preprocess=PreprocessSettings(motor_cutoff_hz=args.motor_cutoff, camera_cutoff_hz=args.camera_cutoff))
-    topics = ("motors", "camera", "reference") if args.simulators else ("motors", "camera")
-    # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27
-    log = read_log(args.log, start=args.start, end=args.end, topics=topics, require=("motors", "camera"),
-                   accept_out_of_range_forces=args.accept_out_of_range_forces)
-    require_camera_frames(log)
-    if params is not None:
-        check_params_fit_log(params, log, args.params)
+    oe = args.method == "output-error"
+    model = None
+    if args.model:
+        from identification.output_error.identify import load_extended_model
+
+        model = load_extended_model(args.model)
+    oe_settings = None
+    if oe:
+        kw = {} if args.max_evaluations is None else {"max_evaluations": args.max_evaluations}
+        try:
+            oe_settings = OutputErrorSettings(integrator=args.integrator, **kw)
+        except ValueError as exc:
+            raise ValueError(f"--{exc}") from None
+    # the camera's joint angles give the joint torques of eq 38 and the elongations of eq 27; the
+    # output-error re-simulation starts at the first /neck/reference pose when the log has one
+    topics = ("motors", "camera", "reference") if (args.simulators or oe) else ("motors", "camera")
+    logs, results = [], []
+    for path in args.log:
+        log = read_log(path, start=args.start, end=args.end, topics=topics, require=("motors", "camera"),
+                       accept_out_of_range_forces=args.accept_out_of_range_forces)
+        require_camera_frames(log)
+        if params is not None:
+            check_params_fit_log(params, log, args.params)
+        logs.append(log)
+    if oe and len(logs) > 1:
+        from identification.output_error.problem import same_neck
+
+        for log in logs[1:]:
+            same_neck(logs[0].params, log.params, str(log.path), str(logs[0].path))
+    log = logs[0]
     nominal = params or log.params
     if args.simulators and not nominal.routing.is_paper_kind(nominal.n_joints):
         raise ValueError(f"--simulators: cannot handle this log's routing ({nominal.n_joints} joints, "
                          f"{nominal.n_cables} cables): the §5.6 comparison replays the run under the paper's "
                          f"computed-torque law, which needs the paper's routing; identify without --simulators")
-    print(f"identifying from {args.log}: {log.motors.t.size} motor samples, {log.camera.t.size} camera frames",
-          file=sys.stderr)
-    result = identify_log(log, settings, params=params, models=models)
+    for path, lg in zip(args.log, logs):
+        print(f"identifying from {path}: {lg.motors.t.size} motor samples, {lg.camera.t.size} camera frames",
+              file=sys.stderr)
+        results.append(identify_log(lg, settings, params=params, models=models))
+    result = results[0]
     print(format_tables(result, reference=f"--params {args.params}" if args.params else "nominal"))
     summary = result.to_dict()
     summary.update(report_input_warnings(log.warnings))
+    if oe:
+        from identification.output_error.identify import identify_output_error
+        from identification.output_error.report import format_output_error
+
+        if len(logs) > 1:
+            summary["least_squares_per_log"] = {str(p): r.to_dict() for p, r in zip(args.log[1:], results[1:])}
+        fitted, _ = identify_output_error(logs, params, model=model, settings=oe_settings, least_squares=results,
+                                          progress=not args.no_progress)
+        print("\n" + format_output_error(fitted, model.params if model else nominal,
+                                         reference_name="--model" if model else
+                                         (f"--params" if args.params else "nominal")))
+        summary["output_error"] = fitted.to_dict()
     comparison = None
     if args.simulators:
         from identification.simulator import compare_simulators

@@ -1,0 +1,298 @@
+"""The output-error fit: box-constrained trust-region least squares over re-simulations.
+
+``scipy.optimize.least_squares`` (trust-region reflective, bounds of :class:`Layout`, parameter
+scales from the start point) minimises the noise-weighted residuals of
+:func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
+batch of p rollouts per experiment (the engine may run them in parallel).  The integrator is
+fixed once per fit (from the start point, :func:`neck_sim.mjcf.integrator_for`, or given): the
+model is continuous in every parameter.  A candidate whose re-simulation diverges gets NaN
+residuals, which the trust region treats as a rejected step (the radius shrinks); its reason is
+kept in ``rejected``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.output_error.intervals import Z95, jacobian_covariance
+from identification.output_error.misfit import cost_ratios, misfit_lines
+from identification.output_error.settings import OutputErrorSettings
+from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residuals
+from identification.output_error import _serial, rollouts as engine
+
+__all__ = ["OutputErrorSettings", "OutputErrorResult", "fit", "cost_at", "horizons"]
+
+#: Smallest parameter scale per group (x_scale and finite-difference step), in the group's unit.
+SCALE_FLOOR = {"f_s": 1.0, "k": 100.0, "lambda": 1.0, "c_a": 10.0}
+
+
+@dataclass(frozen=True, eq=False)
+class OutputErrorResult:
+    """The fitted parameters (``value``, ``sigma``, ``ci95`` half-widths, (p,) in ``names`` order,
+    units ``units``) beside the ``start``; cost ratio per signal (1 = noise floor), the misfit
+    lines, rejected candidates, rollouts run, CPU s, the integrator and scipy's stop reason."""
+
+    names: tuple
+    units: tuple
+    start: np.ndarray
+    value: np.ndarray
+    sigma: np.ndarray
+    ci95: np.ndarray
+    cov: np.ndarray
+    cost_ratio: dict
+    n_samples: dict
+    misfit: tuple
+    rejected: tuple
+    rollouts: int
+    iterations: int
+    cpu_s: float
+    integrator: str
+    status: str
+    logs: tuple
+    notes: tuple = ()
+    simulated_s: float = 0.0   # s of plant time re-simulated (rollouts x their spans)
+    stages: tuple = ()         # per fitted span: {"span_s", "rollouts" (cumulative), "status", "converged"}
+
+    @property
+    def converged(self) -> bool:
+        return not any(n.startswith("NOT CONVERGED") for n in self.notes)
+
+    def group(self, symbol: str, attr: str = "value") -> np.ndarray:
+        idx = [i for i, n in enumerate(self.names) if n.split("(")[0] == symbol]
+        if not idx:
+            raise KeyError(f"{symbol!r}: no such parameter group (parameters: {', '.join(self.names)})")
+        return getattr(self, attr)[idx]
+
+    def to_dict(self) -> dict:
+        """The JSON ``output_error`` object: per-parameter-group lists of {value, ci95}."""
+        groups: dict = {}
+        for n, u, v, c, s0 in zip(self.names, self.units, self.value, self.ci95, self.start):
+            groups.setdefault(n.split("(")[0], []).append({"value": float(v), "ci95": float(c), "unit": u,
+                                                           "start": float(s0)})
+        return {"parameters": groups, "names": list(self.names), "cost_ratio": self.cost_ratio,
+                "samples": self.n_samples, "misfit": list(self.misfit), "rejected_steps": list(self.rejected),
+                "rollouts": self.rollouts, "simulated_s": self.simulated_s, "iterations": self.iterations, "cpu_s": self.cpu_s,
+                "integrator": self.integrator, "status": self.status, "converged": self.converged,
+                "logs": list(self.logs),
+                "notes": list(self.notes), "stages": list(self.stages),
+                "ci95_method": "1.96 sigma, sigma from s^2 (J^T J)^-1 at the optimum (J of the noise-weighted "
+                               "residuals, s^2 their variance)"}
+
+
+def _scales(layout: Layout, x0) -> np.ndarray:
+    floor = np.array([SCALE_FLOOR.get(n.split("(")[0], 0.0) for n in layout.names])
+    sc = np.maximum(np.abs(x0), floor)
+    return np.where(sc > 0, sc, 1.0)
+
+
+def choose_integrator(layout: Layout, x0, settings: OutputErrorSettings) -> str:
+    """The integrator for the whole fit: the given one, else the plant's choice at the start point."""
+    if settings.integrator is not None:
+        return settings.integrator
+    from neck_sim.mjcf import integrator_for
+
+    return integrator_for(layout.plant(x0)[0])
+
+
+class _Evaluator:
+    """Rollouts of parameter vectors over every experiment, counted, with divergences named."""
+
+    def __init__(self, measured, layout: Layout, integrator: str, bar):
+        self.measured, self.layout, self.integrator, self.bar = measured, layout, integrator, bar
+        self.sigmas = noise_sigmas(layout.params)
+        self.rollouts, self.rejected, self.simulated_s = 0, [], 0.0
+
+    def runs(self, X) -> tuple[list, list]:
+        """Per vector of X (K, p): its runs [(theta, alpha) per experiment] or None, and reasons."""
+        K = len(X)
+        plants, reasons = [], [None] * K
+        for k, x in enumerate(X):
+            try:
+                plants.append(self.layout.plant(x))
+            except ValueError as exc:
+                plants.append(None)
+                reasons[k] = f"not a valid plant: {exc}"
+        ok = [k for k in range(K) if plants[k] is not None]
+        runs = [[] if plants[k] is not None else None for k in range(K)]
+        for meas in self.measured:
+            out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
+            self.rollouts += len(ok)
+            self.simulated_s += len(ok) * meas.duration_s
+            for i, k in enumerate(ok):
+                if runs[k] is None:
+                    continue
+                if out.diverged[i]:
+                    runs[k], reasons[k] = None, f"{meas.name}: {out.reasons[i]}"
+                else:
+                    runs[k].append((out.encoders[i], out.camera_alpha[i]))
+        if self.bar is not None:
+            self.bar.update(len(ok) * len(self.measured))
+        return runs, reasons
+
+    def residual(self, run) -> dict:
+        return residuals(self.measured, run, self.sigmas)
+
+
+def cost_at(measured, layout: Layout, x, integrator: str) -> dict:
+    """Cost ratio per signal (:func:`misfit.cost_ratios`) of one parameter vector; ValueError if
+    its re-simulation diverges."""
+    ev = _Evaluator(measured, layout, integrator, None)
+    (run,), (why,) = ev.runs([np.asarray(x, dtype=float)])
+    if run is None:
+        raise ValueError(f"output-error: this parameter set cannot be simulated ({why})")
+    return cost_ratios(ev.residual(run))
+
+
+class _Diverged(ValueError):
+    """The start point of a stage cannot be simulated."""
+
+
+def _solve(ev: _Evaluator, measured, layout: Layout, x0, scale, s: OutputErrorSettings, max_nfev: int):
+    """One trust-region solve on ``measured``; (scipy result, residuals at its x)."""
+    from scipy.optimize import least_squares
+
+    ev.measured = measured
+    last = {}
+    n = sum(e.theta.size + e.camera_alpha.size for e in measured)
+
+    def fun(x):
+        key = x.tobytes()
+        if key not in last:
+            (run,), (why,) = ev.runs([x])
+            last.clear()
+            if run is None:
+                ev.rejected.append(f"candidate {_short(layout, x)} rejected: {why}")
+                last[key] = None
+            else:
+                last[key] = np.concatenate([ev.residual(run)[k] for k in SIGNALS])
+        r = last[key]
+        if r is None:
+            return np.full(n, np.nan)
+        if ev.bar is not None:
+            ev.bar.set_postfix(cost=f"{0.5 * float(r @ r):.4g}")
+        return r
+
+    def residual_of(run):
+        return np.concatenate([ev.residual(run)[k] for k in SIGNALS])
+
+    def jac(x):
+        r = fun(x)
+        h = s.rel_step * scale
+        runs, reasons = ev.runs(x[None, :] + np.diag(h))
+        J = np.empty((r.size, x.size))
+        for i, run in enumerate(runs):
+            if run is None:                    # the forward step diverged: step back instead
+                (back,), (why,) = ev.runs([x - np.diag(h)[i]])
+                if back is None:
+                    raise ValueError(f"output-error: the plant diverges on both sides of {layout.names[i]} "
+                                     f"at {x[i]:.6g} ({reasons[i]}; {why})")
+                J[:, i] = (r - residual_of(back)) / h[i]
+            else:
+                J[:, i] = (residual_of(run) - r) / h[i]
+        return J
+
+    r0 = fun(x0)
+    if not np.all(np.isfinite(r0)):
+        raise _Diverged(ev.rejected[-1])
+    sol = least_squares(fun, x0, jac=jac, bounds=(layout.lower, layout.upper), x_scale=scale, method="trf",
+                        max_nfev=max_nfev, xtol=s.xtol, ftol=s.ftol, gtol=1e-12)
+    return sol, fun(sol.x)
+
+
+def horizons(duration_s: float, first_s: float, growth: float) -> list:
+    """Fitted spans (s from each log's start): first_s, then x growth, the last the whole log
+    (a span within 1/growth of it is merged into the whole)."""
+    out, h = [], first_s
+    while h * growth ** 0.5 < duration_s:
+        out.append(h)
+        h *= growth
+    return out + [duration_s]
+
+
+def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
+        progress: bool = False, notes=()) -> OutputErrorResult:
+    """Fit ``layout``'s parameters to ``measured`` (one parameter set for all) from ``x0``.
+
+    An open-loop re-simulation drifts away as the parameters are off (from the least-squares
+    start on the 85 s identification run it diverges at 27 s), so the fit grows its span: the
+    first ``settings.first_horizon_s`` of every log, then ``horizon_growth`` times longer, each
+    from the previous optimum, until the whole logs (:func:`horizons`); the intervals and cost
+    ratios are those of the whole logs.  ValueError when a span's start cannot be simulated
+    (halving the growth twice did not help); later diverging candidates are rejected steps."""
+    from tqdm.auto import tqdm
+
+    s = settings or OutputErrorSettings()
+    x = np.clip(np.asarray(x0, dtype=float), layout.lower, layout.upper)
+    start = x.copy()
+    integrator = choose_integrator(layout, x, s)
+    scale = _scales(layout, x)
+    cpu0 = time.process_time()
+    duration = max(m.duration_s for m in measured)
+    spans = horizons(duration, s.first_horizon_s, s.horizon_growth)
+    stages, njev = [], 0
+    with tqdm(desc="output-error fit", unit="rollout", disable=not progress, leave=False) as bar:
+        ev = _Evaluator(measured, layout, integrator, bar)
+        done, i, retries = 0.0, 0, 0
+        while i < len(spans):
+            span = spans[i]
+            part = [m.window(span) for m in measured]
+            bar.set_description(f"output-error fit, first {span:.3g} s")
+            try:
+                sol, r = _solve(ev, part, layout, x, scale, s, s.max_evaluations)
+            except _Diverged as exc:
+                if i == 0 or retries >= 2:
+                    raise ValueError(f"output-error: the start of the fit over the first {span:.3g} s cannot be "
+                                     f"simulated ({exc})") from None
+                spans.insert(i, 0.5 * (done + span))          # a shorter step from the last optimum
+                retries += 1
+                continue
+            x, done, retries, njev = sol.x, span, 0, njev + int(sol.njev or 0)
+            stages.append({"span_s": float(span), "rollouts": ev.rollouts, "status": str(sol.message),
+                           "converged": bool(sol.status != 0)})
+            i += 1
+    res = _split(r, measured)
+    cov, _ = jacobian_covariance(sol.jac, r)
+    sigma = np.sqrt(np.diag(cov))
+    ratios = cost_ratios(res)
+    notes = list(notes)
+    from neck_sim.mjcf import integrator_for
+
+    if sol.status == 0:
+        notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} cost evaluations (--max-evaluations); "
+                     "the values and any misfit below are those of an unfinished fit")
+    wanted = integrator_for(layout.plant(x)[0])
+    if wanted != integrator:
+        notes.append(f"integrator: the fit ran on {integrator} (chosen at the start point); at the fitted values the "
+                     f"plant would choose {wanted}: refit with --integrator {wanted} to compare")
+    return OutputErrorResult(layout.names, layout.units, start, x, sigma, Z95 * sigma, cov, ratios,
+                             {k: int(v.size) for k, v in res.items()},
+                             tuple(misfit_lines(ratios, [e.name for e in measured], s.misfit_ratio)),
+                             tuple(ev.rejected), ev.rollouts, njev, time.process_time() - cpu0,
+                             integrator, str(sol.message), tuple(e.name for e in measured), tuple(notes),
+                             ev.simulated_s, tuple(stages))
+
+
+def _rollout(replay, params, effects, integrator):
+    """The parallel engine when it can return unquantised motor angles and step these effects
+    (a dead band or an actuation delay keeps state outside MuJoCo's), else the serial one."""
+    m = params[0].n_cables if params else 0
+    outside = any(e is not None and (e.command_delay() > 0 or np.any(e.encoder_band(m) > 0)) for e in effects)
+    if _UNQUANTISED and not outside:
+        return engine.rollout(replay, params, effects, integrator=integrator, quantise=False)
+    return _serial.rollout(replay, params, effects, integrator=integrator)
+
+
+_UNQUANTISED = "quantise" in inspect.signature(engine.rollout).parameters
+
+
+def _split(r, measured) -> dict:
+    n_enc = sum(e.theta.size for e in measured)
+    return {"encoders": r[:n_enc], "camera": r[n_enc:]}
+
+
+def _short(layout: Layout, x) -> str:
+    return ", ".join(f"{n}={v:.4g}" for n, v in zip(layout.names, x))
