@@ -130,7 +130,8 @@ class Experiment:
         """
         m = log.motors
         if m is None or len(m.t) < 2:
-            raise ValueError(f"{log.path}: /neck/motors has {0 if m is None else len(m.t)} sample(s): nothing to replay")
+            count = 0 if m is None else len(m.t)
+            raise ValueError(f"{log.path}: /neck/motors has {count} sample(s): nothing to replay")
         if log.camera is None:
             raise ValueError(f"{log.path}: no /neck/camera frames to compare joint angles with")
         steps = np.diff(m.t)
@@ -200,7 +201,8 @@ def rollout(experiment: Experiment, params: Sequence[NeckParams], effects: Effec
     in c_a; ``timestep``: physics step, s (default the plant's); ``nthread``: threads (default
     :func:`default_threads`); ``quantise``: encoders read as the plant's (nearest count), or
     False for the motor angles theta themselves (rad, ``Plant.truth().theta``), which a
-    finite-difference Jacobian needs (a small parameter step rarely moves a count).  Bad input raises ValueError in one line; a diverging set does not
+    finite-difference Jacobian needs (a small parameter step rarely moves a count).  Bad input
+    raises ValueError in one line; a diverging set does not
     raise (see :class:`Rollouts`).
     """
     from neck_sim.plant import Plant
