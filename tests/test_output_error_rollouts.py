@@ -187,7 +187,7 @@ def test_forces_outside_the_motor_range_are_clipped_as_the_plant_clips_them(logg
 def test_logs_roll_out_on_a_dask_cluster_as_here(logged):
     from distributed import LocalCluster
 
-    from controllers.campaign import ExecutorSpec
+    from neck_sim.campaign import ExecutorSpec
     from identification.output_error.rollouts import rollout_logs
 
     p, log = logged

@@ -253,10 +253,10 @@ def rollout_logs(experiments: Sequence[Experiment], params: Sequence[NeckParams]
                  nthread: int | None = None, quantise: bool = True) -> list[Rollouts]:
     """:func:`rollout` of the same K parameter sets on each experiment (a multi-log fit): here one
     after the other (``executor`` None), or one job per log on the project's campaign executor
-    (:func:`controllers.campaign.run_campaign`: an ``ExecutorSpec`` of local processes or a Dask
+    (:func:`neck_sim.campaign.run_campaign`: an ``ExecutorSpec`` of local processes or a Dask
     cluster, or an executor already open).  Each job runs its K rollouts on ``nthread`` threads
     of its worker (default there: :func:`default_threads`)."""
-    from controllers.campaign import run_campaign
+    from neck_sim.campaign import run_campaign
 
     experiments = list(experiments)
     job = functools.partial(rollout, params=list(params), effects=effects, integrator=integrator, nthread=nthread,
