@@ -28,21 +28,43 @@ Usage::
 
 from __future__ import annotations
 
-from neck_sim.cache import cache_dir
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from neck_sim.native.source import MAX_CABLES, SOURCE_PATH, PlantStruct, source, struct_fields
-from neck_sim.native.build import NativeBuildError, build, compiler, link_flags, mujoco_include_dir, mujoco_library
-from neck_sim.native.mujoco_log import FATAL_WARNINGS, last_warning, log_warning, route_mujoco_warnings
-from neck_sim.native.dispatch import BACKENDS, DISPATCH, Dispatch, get_backend, native_available, set_backend
-from neck_sim.native.record import NativePlant, Outputs, StepState
-from neck_sim.native.fused import FusedStep
+
+if TYPE_CHECKING:
+    from neck_sim.cache import cache_dir
+    from neck_sim.native.build import (NativeBuildError, build, compiler, link_flags, mujoco_include_dir,
+                                       mujoco_library)
+    from neck_sim.native.dispatch import BACKENDS, DISPATCH, Dispatch, get_backend, native_available, set_backend
+    from neck_sim.native.fused import FusedStep
+    from neck_sim.native.mujoco_log import FATAL_WARNINGS, last_warning, log_warning, route_mujoco_warnings
+    from neck_sim.native.rawcall import call_c
+    from neck_sim.native.record import NativePlant, Outputs, StepState
+
+# Loaded on first use (PEP 562): neck_sim.params reads MAX_CABLES from the source module, and a
+# command's --help should load neither MuJoCo (build, dispatch) nor numba (rawcall).
+_LAZY = {"cache_dir": "neck_sim.cache",
+         **dict.fromkeys(("NativeBuildError", "build", "compiler", "link_flags", "mujoco_include_dir",
+                          "mujoco_library"), "neck_sim.native.build"),
+         **dict.fromkeys(("BACKENDS", "DISPATCH", "Dispatch", "get_backend", "native_available", "set_backend"),
+                         "neck_sim.native.dispatch"),
+         "FusedStep": "neck_sim.native.fused",
+         **dict.fromkeys(("FATAL_WARNINGS", "last_warning", "log_warning", "route_mujoco_warnings"),
+                         "neck_sim.native.mujoco_log"),
+         "call_c": "neck_sim.native.rawcall",
+         **dict.fromkeys(("NativePlant", "Outputs", "StepState"), "neck_sim.native.record")}
 
 
-def __getattr__(name: str):
-    # call_c needs numba, which neck_sim.params (it imports MAX_CABLES from here) should not load
-    if name == "call_c":
-        from neck_sim.native.rawcall import call_c
-        return call_c
-    raise AttributeError(f"module 'neck_sim.native' has no attribute {name!r}")
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'neck_sim.native' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = ["SOURCE_PATH", "source", "MAX_CABLES", "PlantStruct", "struct_fields", "build", "NativeBuildError",
            "mujoco_include_dir", "mujoco_library", "link_flags", "compiler", "cache_dir",
