@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.diagnosis import columns as effect_columns
 from identification.output_error.rollouts import Experiment
 from neck_sim.params import NeckParams, to_dict
 
@@ -148,7 +149,8 @@ class Layout:
             value = getattr(e, fld, None) if fld else None
             if value is None or e.baseline:
                 continue
-            col = next((c for c in e.columns if c.symbol == fld), None)
+            fitted = effect_columns.get(e.name).columns if e.name in effect_columns.names() else ()
+            col = next((c for c in fitted if c.symbol == fld), None)
             unit, lo = (col.unit, 0.0 if col.signed else -np.inf) if col is not None else ("", -np.inf)
             cables = getattr(e, "cables", None)
             if isinstance(value, tuple):
