@@ -115,3 +115,16 @@ def test_replicates_at_the_logs_noise_only_give_no_second_order_term():
     np.testing.assert_allclose(u.bias_second_order, 0.0)
     np.testing.assert_allclose(u.sigma_bootstrap, np.hypot(reps.std(0, ddof=1) * np.sqrt(4 / 3), reps.mean(0) - [1, 2]))
     assert u.n_bootstrap_2x == 0
+
+
+def test_the_diagnosis_labels_its_sigmas_as_eq50_not_calibrated():
+    """The diagnosis's linear parameters carry eq (50)'s sigma of its weighted fit; its JSON says
+    so per parameter (it is not the calibrated sigma of ``identify``)."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.parameters import all_parameters
+
+    fit = SimpleNamespace(names=("payload",), units=("kg",), value=np.array([0.068]), sigma=np.array([0.002]),
+                          model=SimpleNamespace(terms=()))
+    d = all_parameters(fit)["payload"].to_dict()
+    assert d["sigma"] == 0.002 and "eq (50)" in d["note"] and "not calibrated" in d["note"], d
