@@ -27,7 +27,12 @@ chosen on seeds 9000-9007 of both logs, which the table does not use.
     # or one process per log, then the table from both:
     python benchmarks/bench_coverage.py --logs control-test --json ct.json &
     python benchmarks/bench_coverage.py --logs identification --json id.json; wait
-    python benchmarks/bench_coverage.py --from-json ct.json id.json --write-docs docs/identification.md
+    python benchmarks/bench_coverage.py --logs "" --diagnosis-seeds 5 --json diag.json
+    python benchmarks/bench_coverage.py --from-json ct.json id.json diag.json --write-docs docs/identification.md
+
+``--diagnosis-seeds N`` adds the coverage of ``neck-sim diagnose``'s payload mass (eq (50) of its
+weighted fit, not calibrated) on N blind logs of the tests' generator (a 68-82 g payload, level 1,
+seeds 1..N; one forward step, no re-simulation).
 """
 
 from __future__ import annotations
@@ -119,6 +124,38 @@ def run_log(name: str, seeds: int, replicates: int, tmp: str) -> dict:
             "identify_s": float(np.median(t_cal)), "identify_eq50_hac_s": float(np.median(t_plain))}
 
 
+def run_diagnosis(seeds: int) -> dict:
+    """Coverage of the diagnosis's payload mass and its eq (50) sigma on the generator's logs."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
+    from identification.diagnosis import DiagnosisSettings, diagnose_log
+    from open_world.generator import make_spec, simulate
+
+    rows = []
+    for seed in range(1, seeds + 1):
+        spec = make_spec("payload", seed, 1.0)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "payload.mcap")
+            simulate(path, spec, seed)
+            diag = diagnose_log(path, model=spec.model, settings=DiagnosisSettings(max_steps=1, resimulate=False))
+        f = diag.findings[0] if diag.findings else None
+        par = f.parameters.get(spec.symbol) if f is not None else None
+        rows.append({"seed": seed, "truth": float(spec.magnitude), "verdict": str(diag.verdict),
+                     "value": None if par is None else par.value, "sigma": None if par is None else par.sigma})
+    return {"log": "diagnosis", "commit": _commit(), "seeds": seeds, "rows": rows}
+
+
+def diagnosis_table(r: dict) -> str:
+    z = np.array([(x["value"] - x["truth"]) / x["sigma"] for x in r["rows"] if x["sigma"]])
+    named = sum(x["value"] is not None for x in r["rows"])
+    return "\n".join([
+        f"**diagnosis** (`neck-sim diagnose`'s payload mass on {r['seeds']} blind payload logs of the tests' generator, "
+        f"seeds 1-{r['seeds']}, code at commit {r.get('commit', 'unknown')}; sigma: eq (50) of its weighted fit, "
+        "not calibrated)", "",
+        "| parameter | payload named | within 1 sigma / 2 sigma | \\|error\\| / sigma per log |", "|---|---|---|---|",
+        f"| payload mass | {named}/{r['seeds']} | {np.mean(np.abs(z) < 1):.2f} / {np.mean(np.abs(z) < 2):.2f} | "
+        + ", ".join(f"{abs(v):.2f}" for v in z) + " |", ""])
+
+
 def _commit() -> str:
     """The checkout's commit (with "+changes" when its tracked files differ from it)."""
     here = os.path.dirname(os.path.abspath(__file__))
@@ -130,6 +167,9 @@ def _commit() -> str:
 def table(results) -> str:
     lines = []
     for r in results:
+        if r["log"] == "diagnosis":
+            lines.append(diagnosis_table(r))
+            continue
         lines += [f"**{r['log']}** ({r['duration_s']:.0f} s log, {r['seeds']} camera-noise seeds, "
                   f"code at commit {r.get('commit', 'unknown')}, "
                   f"{r['replicates']} + {max(r['replicates'] // 2, 2)} bootstrap replicates at the camera's noise "
@@ -165,6 +205,8 @@ def main(argv=None) -> int:
     ap.add_argument("--replicates", type=int, default=40,
                     help="camera-noise bootstrap replicates per log (half as many again at twice the noise variance)")
     ap.add_argument("--logs", default="control-test,identification")
+    ap.add_argument("--diagnosis-seeds", type=int, default=0,
+                    help="also measure the diagnosis's payload sigma on this many generator logs")
     ap.add_argument("--write-docs", metavar="MD", help="write the table between the coverage markers of MD")
     ap.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ap.add_argument("--from-json", metavar="PATH", nargs="+",
@@ -178,13 +220,19 @@ def main(argv=None) -> int:
             with open(path, encoding="utf-8") as fh:
                 results += json.load(fh)
     with tempfile.TemporaryDirectory() as tmp:
-        for name in [] if args.from_json else args.logs.split(","):
+        for name in [] if args.from_json else [n for n in args.logs.split(",") if n.strip()]:
             name = name.strip()
             r = run_log(name, args.seeds_long if name == "identification" else args.seeds, args.replicates, tmp)
             results.append(r)
             print(table([r]), flush=True)
+        if args.diagnosis_seeds:
+            r = run_diagnosis(args.diagnosis_seeds)
+            results.append(r)
+            print(table([r]), flush=True)
     text = table(results)
     for r in results:
+        if r["log"] == "diagnosis":
+            continue
         text += (f"\nWall-clock time of one identification ({r['log']}, no alpha_hat, median over the seeds, "
                  f"on the machine as loaded during the run): {r['identify_s']:.2f} s with the "
                  f"calibrated sigmas, {r['identify_eq50_hac_s']:.2f} s with eq (50) and HAC only "
