@@ -14,11 +14,20 @@ elastic model's f_s, a model-form term: see ``identification.paper.calibrated_un
   times with the camera's frames replaced by the filtered camera angles plus fresh Gaussian noise
   of the log's stated camera precision (``sensors.camera_noise``, rad), every other signal as
   measured, the motors' cutoff and the slack masks as chosen on the log, the camera's cutoff
-  chosen again (its choice moves with the noise).  The replicates' mean minus the log's estimate
-  is the bias the noise causes (errors in variables, filtering); it is subtracted.  That bias is
-  measured around the estimate and the filtered angles, not the truth, and removes only about half
-  of the true bias (measured over seeds, ``benchmarks/bench_coverage.py``), so its size is kept
-  in the sigma: sigma_boot = sqrt(s^2 (1 + 1/n) + bias^2), s the replicates' standard deviation.
+  chosen again (its choice moves with the noise), and ``n // 2`` times more with noise of twice
+  that variance.  The filtered angles keep the log's own noise in the band that reaches the
+  regressors, so the log, the first replicates and the second stand at 1, 2 and 3 times the
+  camera's noise variance: three points of the estimate as a function of the noise, the idea of
+  SIMEX (Cook & Stefanski, JASA 89, 1994).  The first replicates' mean minus the log's estimate,
+  b1, is the first-order bias the noise causes (errors in variables, filtering); it is
+  subtracted (a linear extrapolation to no noise).  The second difference of the three points,
+  d2 = m2 - 2 m1 + value_ls, is what a linear extrapolation misses when the bias grows faster
+  than the noise variance (exactly so for a quadratic); its estimate is noisy (its sampling
+  spread is about half the replicates' spread), so it is not applied but kept in the sigma as the
+  uncertainty of the correction, with b1 (the correction is measured around the estimate and the
+  filtered angles, not the truth, and removed only about half of the true bias on the benchmark's
+  seeds): sigma_boot = sqrt(s^2 (1 + 1/n) + b1^2 + d2^2), s the first replicates' standard
+  deviation.
 * **HAC sandwich** (``hac_covariance``): (W^T W)^-1 S (W^T W)^-1 with S the Newey-West (Bartlett
   kernel) long-run covariance of the per-sample scores W_s^T rho_s, bandwidth by Andrews' AR(1)
   plug-in rule.  It needs no noise model and holds for any error source the residuals show
@@ -40,11 +49,21 @@ from identification.least_squares import LSResult
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
 from neck_sim.params import NeckParams
 
-__all__ = ["Uncertainty", "row_samples", "andrews_bandwidth", "hac_covariance", "camera_noise_bootstrap",
+__all__ = ["Uncertainty", "Replicates", "row_samples", "andrews_bandwidth", "hac_covariance", "camera_noise_bootstrap",
            "calibrate", "format_uncertainty", "refit", "N_BOOTSTRAP"]
 
-#: Replicates of the camera-noise bootstrap (sigma known to about 1/sqrt(2 n) = 11 %).
+#: Replicates of the camera-noise bootstrap at the log's noise (sigma known to about 1/sqrt(2 n) =
+#: 11 %); half as many again run at twice its variance (``camera_noise_bootstrap``).
 N_BOOTSTRAP = 40
+
+
+@dataclass(frozen=True, eq=False)
+class Replicates:
+    """Bootstrap values of one model, (n, p) with camera noise of the log's variance added to its
+    filtered angles and (n2, p) with twice that variance added (n2 = 0: first order only)."""
+
+    at_1x: np.ndarray
+    at_2x: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,8 +71,9 @@ class Uncertainty:
     """Calibrated statistics of one model's parameters, arrays (p,) in the order of ``names``.
 
     ``value_ls`` the least-squares value (eq 49), ``sigma_eq50`` eq (50)'s sigma; ``bias`` the
-    camera-noise bias (0 without bootstrap), ``value`` = value_ls - bias; ``sigma_bootstrap``
-    (bias included, see the module docstring), ``sigma_hac``; ``sigma`` = the larger of the two
+    first-order camera-noise bias b1 (0 without bootstrap), ``value`` = value_ls - bias;
+    ``bias_second_order`` the second difference d2 (module docstring; zeros without replicates at
+    twice the noise); ``sigma_bootstrap`` (b1 and d2 included), ``sigma_hac``; ``sigma`` = the larger of the two
     (units of the parameter), with ``sigma_model`` in quadrature when set.  ``identified`` False where the data do not determine the
     parameter (:mod:`identification.gaps`).
     """
@@ -72,6 +92,8 @@ class Uncertainty:
     camera_noise: float
     identified: np.ndarray
     sigma_model: np.ndarray | None = None     # model-form term in sigma (``with_model_term``), or None
+    bias_second_order: np.ndarray | None = None   # d2 (p,), kept in sigma_bootstrap; None: not measured
+    n_bootstrap_2x: int = 0                   # replicates at twice the camera's noise variance
 
     def group(self, attr: str, symbol: str) -> np.ndarray:
         """``attr`` (e.g. "value", "sigma") of the parameters named ``symbol(i)``, in cable order."""
@@ -102,8 +124,11 @@ class Uncertainty:
                          "sigma_hac": float(self.sigma_hac[i]), "sigma_eq50_paper": float(self.sigma_eq50[i])}
             if self.sigma_model is not None:
                 params[n]["sigma_model_form"] = float(self.sigma_model[i])
+            if self.bias_second_order is not None:
+                params[n]["noise_bias_second_order"] = float(self.bias_second_order[i])
         return {"parameters": params, "hac_bandwidth_samples": self.hac_bandwidth,
-                "bootstrap_replicates": self.n_bootstrap, "camera_noise_rad": self.camera_noise}
+                "bootstrap_replicates": self.n_bootstrap, "bootstrap_replicates_twice_noise": self.n_bootstrap_2x,
+                "camera_noise_rad": self.camera_noise}
 
 
 def row_samples(n_samples: int, n_joints: int, taut: np.ndarray | None = None, *, torque: bool = True,
@@ -203,13 +228,28 @@ def refit(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight
 
 def camera_noise_bootstrap(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight: float,
                            models: Collection[str], settings: PreprocessSettings,
-                           n: int = N_BOOTSTRAP, seed: int = 0) -> dict:
-    """Replicate values (n, p) per model, re-identified with fresh camera noise (module docstring).
+                           n: int = N_BOOTSTRAP, seed: int = 0, second_order: bool = True) -> dict:
+    """:class:`Replicates` per model, re-identified with fresh camera noise (module docstring):
+    ``n`` at the log's noise variance and, with ``second_order``, ``max(n // 2, 2)`` at twice it.
 
     The frames are the camera angles as filtered on the log (interpolated at the frame times)
-    plus N(0, ``params.sensors.camera_noise``) per frame and joint; the motors' cutoff as chosen on
-    the log, the camera's chosen again by ``settings`` (residual analysis unless given).
+    plus N(0, ``params.sensors.camera_noise``^2) (resp. twice that variance) per frame and joint;
+    the motors' cutoff as chosen on the log, the camera's chosen again by ``settings`` (residual
+    analysis unless given).
     """
+    rng = np.random.default_rng(seed)
+    at_1x = _replicate_values(prep, params, taut, weight=weight, models=models, settings=settings, n=n,
+                              scale=1.0, rng=rng)
+    at_2x = (_replicate_values(prep, params, taut, weight=weight, models=models, settings=settings,
+                               n=max(n // 2, 2), scale=np.sqrt(2.0), rng=rng) if second_order
+             else {k: np.zeros((0, v.shape[1])) for k, v in at_1x.items()})
+    return {k: Replicates(v, at_2x[k]) for k, v in at_1x.items()}
+
+
+def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight: float,
+                      models: Collection[str], settings: PreprocessSettings, n: int, scale: float,
+                      rng: np.random.Generator) -> dict:
+    """Values (n, p) per model of ``n`` replicates with camera noise ``scale`` times the log's sigma."""
     if prep.camera is None or prep.fast is None or prep.alpha is None:
         raise ValueError("camera noise bootstrap: needs the raw camera frames and control-rate signals")
     tc, _ = prep.camera
@@ -221,8 +261,7 @@ def camera_noise_bootstrap(prep: Prepared, params: NeckParams, taut: np.ndarray 
                                camera_cutoff_hz=settings.camera_cutoff_hz, trim_s=settings.trim_s,
                                common_bandwidth=settings.common_bandwidth)
     rate = prep.motor_rate_hz / prep.decimation
-    sigma = float(params.sensors.camera_noise)
-    rng = np.random.default_rng(seed)
+    sigma = float(params.sensors.camera_noise) * scale
     fast = prep.fast
     reps: dict = {}
     for _ in range(n):
@@ -235,47 +274,62 @@ def camera_noise_bootstrap(prep: Prepared, params: NeckParams, taut: np.ndarray 
     return {k: np.asarray(v) for k, v in reps.items()}
 
 
-def calibrate(ls: LSResult, W: np.ndarray, rows: np.ndarray, n_samples: int, replicates: np.ndarray | None = None,
-              *, camera_noise: float) -> Uncertainty:
+def calibrate(ls: LSResult, W: np.ndarray, rows: np.ndarray, n_samples: int,
+              replicates: Replicates | np.ndarray | None = None, *, camera_noise: float) -> Uncertainty:
     """:class:`Uncertainty` of one model: eq (50), HAC and (when given) the bootstrap replicates.
 
     ``W`` (r, p) the solved (weighted) observation matrix of ``ls``, ``rows`` its rows' sample
-    indices; ``replicates`` (n, p) from :func:`camera_noise_bootstrap` or None.
+    indices; ``replicates`` from :func:`camera_noise_bootstrap` (an array (n, p): replicates at
+    the log's noise only, no second-order term) or None.
     """
     cov, L = hac_covariance(W, ls.residual, rows, n_samples)
     s_hac = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     p = ls.value.size
-    if replicates is not None and len(replicates) > 1:
-        reps = np.asarray(replicates)
+    if isinstance(replicates, np.ndarray):
+        replicates = Replicates(replicates, np.zeros((0, p)))
+    d2 = None
+    nb2 = 0
+    if replicates is not None and len(replicates.at_1x) > 1:
+        reps = np.asarray(replicates.at_1x)
         nb = reps.shape[0]
-        bias = reps.mean(axis=0) - ls.value
-        s_boot = np.hypot(reps.std(axis=0, ddof=1) * np.sqrt(1.0 + 1.0 / nb), bias)
+        m1 = reps.mean(axis=0)
+        bias = m1 - ls.value
+        d2 = np.zeros(p)
+        if len(replicates.at_2x) > 1:
+            nb2 = len(replicates.at_2x)
+            d2 = np.asarray(replicates.at_2x).mean(axis=0) - 2.0 * m1 + ls.value
+        s_boot = np.sqrt(reps.var(axis=0, ddof=1) * (1.0 + 1.0 / nb) + bias ** 2 + d2 ** 2)
     else:
         nb, bias, s_boot = 0, np.zeros(p), np.zeros(p)
     value = ls.value - bias
     return Uncertainty(ls.names, ls.units, ls.value, ls.sigma, bias, value, s_boot, s_hac,
-                       np.maximum(s_boot, s_hac), L, nb, float(camera_noise), np.ones(p, bool))
+                       np.maximum(s_boot, s_hac), L, nb, float(camera_noise), np.ones(p, bool),
+                       bias_second_order=d2, n_bootstrap_2x=nb2)
 
 
 def format_uncertainty(by_model: dict) -> str:
     """The calibrated table: per model and parameter, the least-squares value with eq (50)'s
-    sigma (the paper's), the camera-noise bias, the corrected value with its calibrated sigma
-    (and the two estimates it is the larger of), and whether the data identify it."""
+    sigma (the paper's), the camera-noise bias (first order, applied; second order, in the sigma
+    only), the corrected value with its calibrated sigma (and the two estimates it is the larger
+    of), and whether the data identify it."""
     if not by_model:
         return ""
-    head = (f"{'':10} {'least squares':>13} {'eq (50) sigma':>13} {'noise bias':>11} {'value':>11} "
+    head = (f"{'':10} {'least squares':>13} {'eq (50) sigma':>13} {'noise bias':>11} {'2nd order':>10} {'value':>11} "
             f"{'sigma':>10} {'rel':>7} {'HAC':>10} {'bootstrap':>10}  identified")
     lines = ["Calibrated uncertainty: value = least squares - camera-noise bias; sigma = max(HAC, bootstrap), "
-             "with the model-form term in quadrature where one is given; eq (50) sigma is the paper's "
-             "(independent residuals, 2-4x optimistic here)"]
+             "the bootstrap's holding the bias and its second-order term, with the model-form term in quadrature "
+             "where one is given; eq (50) sigma is the paper's (independent residuals, 2-4x optimistic here)"]
     for model, u in by_model.items():
-        lines += [f"{model} model (HAC bandwidth {u.hac_bandwidth} samples, {u.n_bootstrap} bootstrap replicates "
-                  f"at camera noise {np.degrees(u.camera_noise):.2g} deg)", head]
+        lines += [f"{model} model (HAC bandwidth {u.hac_bandwidth} samples, {u.n_bootstrap} + {u.n_bootstrap_2x} "
+                  f"bootstrap replicates at camera noise {np.degrees(u.camera_noise):.2g} deg and twice its variance)",
+                  head]
+        d2 = u.bias_second_order if u.bias_second_order is not None else np.zeros(len(u.names))
         if u.sigma_model is not None and np.any(u.sigma_model):
             lines.append("  model-form term: " + ", ".join(f"{n} {m:.3g}" for n, m in zip(u.names, u.sigma_model) if m))
         for i, n in enumerate(u.names):
             rel = 100 * u.sigma[i] / abs(u.value[i]) if u.value[i] != 0 else np.inf
-            lines.append(f"{n:10} {u.value_ls[i]:13.5g} {u.sigma_eq50[i]:13.3g} {u.bias[i]:11.3g} {u.value[i]:11.5g} "
+            lines.append(f"{n:10} {u.value_ls[i]:13.5g} {u.sigma_eq50[i]:13.3g} {u.bias[i]:11.3g} {d2[i]:10.3g} "
+                         f"{u.value[i]:11.5g} "
                          f"{u.sigma[i]:10.3g} {rel:6.1f}% {u.sigma_hac[i]:10.3g} {u.sigma_bootstrap[i]:10.3g}  "
                          f"{'yes' if u.identified[i] else 'NO'}")
     return "\n".join(lines)

@@ -6,9 +6,10 @@ and joint, drawn here) to its frames.  That is the same as 20 plant seeds: the c
 plant's only random draw and the controller never sees the camera (two plant seeds give the same
 motor topics bit for bit; only the camera frames differ), so the run itself does not depend on
 the seed.  Each log is identified with the calibrated sigmas (fewer bootstrap replicates than the
-CLI's 40, for time); per parameter group the share of estimates within 1 and 2 sigma of the truth
-must reach 55 % and 88 % (nominal 68 % and 95 %).  The paper's eq (50) sigmas, measured on the
-same logs, must fail that bar (they cover 17-28 % and 36-68 %): the test tells the two apart.
+CLI's 40 + 20, for time: 20 at the camera's noise variance, 10 at twice it); per parameter group
+the share of estimates within 1 and 2 sigma of the truth must reach MIN_1SIGMA and MIN_2SIGMA
+(nominal 68 % and 95 %; set near what the benchmark measures on other seeds).  The paper's eq (50) sigmas, measured on the
+same logs, must fail that bar for at least three of the four groups: the test tells the two apart.
 
 The elastic model's k and c_a have no true value (a linear fit of a tension-dependent stiffness)
 and are not checked; c_a of the variable model is not identified on this log (checked: marked so),
@@ -25,6 +26,9 @@ pytestmark = pytest.mark.slow
 
 SEEDS = 20
 REPLICATES = 20
+# measured on these seeds: 0.70-0.71 / 0.96-0.99 (f_s of the friction model, k, lambda), 1.0 / 1.0
+# (f_s of the elastic model); eq (50): 0.16-0.31 / 0.42-0.56 (0.85 / 1.0 for the elastic f_s)
+MIN_1SIGMA, MIN_2SIGMA = 0.65, 0.93
 GROUPS = (("friction", "f_s"), ("elastic", "f_s"), ("variable", "k"), ("variable", "lambda"))
 
 
@@ -74,12 +78,12 @@ def _coverage(runs, p, model, symbol, value, sigma):
 def test_calibrated_sigmas_cover_the_truth(identified, model, symbol):
     runs, p = identified
     c1, c2 = _coverage(runs, p, model, symbol, "value", "sigma")
-    assert c1 >= 0.55 and c2 >= 0.88, f"{model} {symbol}: coverage {c1:.2f} (1 sigma), {c2:.2f} (2 sigma)"
+    assert c1 >= MIN_1SIGMA and c2 >= MIN_2SIGMA, f"{model} {symbol}: coverage {c1:.2f} (1 sigma), {c2:.2f} (2 sigma)"
 
 
 def test_the_papers_eq50_sigmas_fail_the_same_bar(identified):
     runs, p = identified
-    failed = [g for g in GROUPS if (lambda c: c[0] < 0.55 or c[1] < 0.88)(_coverage(runs, p, *g, "value_ls", "sigma_eq50"))]
+    failed = [g for g in GROUPS if (lambda c: c[0] < MIN_1SIGMA or c[1] < MIN_2SIGMA)(_coverage(runs, p, *g, "value_ls", "sigma_eq50"))]
     assert len(failed) >= 3, f"eq (50) passes for {set(GROUPS) - set(failed)}: the coverage bar does not discriminate"
 
 

@@ -80,3 +80,51 @@ def test_row_samples_follow_the_regressors_row_order(params):
         srow = rows[r]
         j = (r - n_t) % N
         np.testing.assert_allclose(rg.W[r, 2 * C:], 100 * dyn.Z[srow, j] * a[srow])
+
+
+def test_second_order_term_is_what_the_linear_bias_correction_misses():
+    """Estimates that depend on the camera's noise variance v as a + b v + c v^2 (the log at
+    v = 1, replicates at v = 2 and 3): the first-order correction lands at a - 2 c, and the
+    second-order term d2 = 2 c is exactly the distance to the noise-free a, kept in the sigma."""
+    from identification.least_squares import solve_weighted
+    from identification.uncertainty import Replicates, calibrate
+
+    a, b, c = np.array([5.0, 100.0]), np.array([-0.4, 3.0]), np.array([0.05, -0.8])
+    at = lambda v: a + b * v + c * v ** 2          # noqa: E731
+    W = np.vstack([np.eye(2), np.eye(2)])
+    ls = solve_weighted(W, np.tile(at(1.0), 2), ["k(1)", "k(2)"], ["N/m", "N/m"])
+    spread = np.array([[-1.0], [1.0]]) * np.array([0.01, 0.2])      # replicates' spread, mean 0
+    reps = Replicates(at(2.0) + np.repeat(spread, 3, axis=0), at(3.0) + spread)
+    u = calibrate(ls, W, np.arange(4), 4, reps, camera_noise=0.01)
+    np.testing.assert_allclose(u.value, 2 * at(1.0) - at(2.0))
+    np.testing.assert_allclose(a - u.value, u.bias_second_order, rtol=1e-9)
+    s2 = np.var(np.repeat(spread, 3, axis=0), axis=0, ddof=1) * (1 + 1 / 6)
+    np.testing.assert_allclose(u.sigma_bootstrap ** 2, s2 + u.bias ** 2 + u.bias_second_order ** 2)
+    assert np.all(np.abs(u.value - a) <= u.sigma)
+    assert u.n_bootstrap == 6 and u.n_bootstrap_2x == 2
+
+
+def test_replicates_at_the_logs_noise_only_give_no_second_order_term():
+    from identification.least_squares import solve_weighted
+    from identification.uncertainty import calibrate
+
+    W = np.vstack([np.eye(2), np.eye(2)])
+    ls = solve_weighted(W, np.array([1.0, 2.0, 1.0, 2.0]), ["k(1)", "k(2)"], ["N/m", "N/m"])
+    reps = np.array([[1.1, 2.0], [1.3, 2.2], [1.2, 1.8]])
+    u = calibrate(ls, W, np.arange(4), 4, reps, camera_noise=0.01)
+    np.testing.assert_allclose(u.bias_second_order, 0.0)
+    np.testing.assert_allclose(u.sigma_bootstrap, np.hypot(reps.std(0, ddof=1) * np.sqrt(4 / 3), reps.mean(0) - [1, 2]))
+    assert u.n_bootstrap_2x == 0
+
+
+def test_the_diagnosis_labels_its_sigmas_as_eq50_not_calibrated():
+    """The diagnosis's linear parameters carry eq (50)'s sigma of its weighted fit; its JSON says
+    so per parameter (it is not the calibrated sigma of ``identify``)."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.parameters import all_parameters
+
+    fit = SimpleNamespace(names=("payload",), units=("kg",), value=np.array([0.068]), sigma=np.array([0.002]),
+                          model=SimpleNamespace(terms=()))
+    d = all_parameters(fit)["payload"].to_dict()
+    assert d["sigma"] == 0.002 and "eq (50)" in d["note"] and "not calibrated" in d["note"], d

@@ -13,6 +13,12 @@ from identification.diagnosis.fitting import StepContext
 from identification.diagnosis.statistics import clearly_nonzero, score
 
 
+#: How a linear parameter's sigma is computed: the diagnosis does not calibrate it the way
+#: ``identify`` does (``identification.uncertainty``); benchmarks/bench_coverage.py measures its
+#: coverage on payload logs.
+EQ50_NOTE = "sigma: eq (50) of the weighted fit (independent residuals), not calibrated"
+
+
 @dataclass(frozen=True)
 class Parameter:
     """A fitted value with its standard deviation (None when not estimated), unit and a note."""
@@ -111,7 +117,7 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
     out = {}
     for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma):
         if n.split("(")[0] in sym:
-            out[n] = Parameter(float(v), float(s), u)
+            out[n] = Parameter(float(v), float(s), u, EQ50_NOTE)
     per_cable = _per_cable_keys(term)
     shapes = {sh.name: sh for sh in term.identification.shapes}
     for k, v in term.shape:
@@ -127,7 +133,8 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
 def all_parameters(fit: Fit) -> dict[str, Parameter]:
     """Every parameter of a fitted model by name: the linear ones with their sigma, then the
     shape parameters as ``effect.key``."""
-    out = {n: Parameter(float(v), float(s), u) for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma)}
+    out = {n: Parameter(float(v), float(s), u, EQ50_NOTE)
+           for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma)}
     for t in fit.model.terms:
         for k, v in t.shape:
             out[f"{t.name}.{k}"] = Parameter(float(v), None, "", "shape parameter")

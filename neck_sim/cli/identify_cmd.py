@@ -53,8 +53,9 @@ def add_arguments(parser) -> None:
     add_implausible_params_argument(parser)
     parser.add_argument("--no-alpha", action="store_true", help="skip the alpha_hat reconstruction of §5.5")
     parser.add_argument("--bootstrap", type=int, default=None, metavar="N",
-                        help="camera-noise replicates behind the calibrated sigmas (default 40; 0: HAC sigma only, "
-                             "no bias correction); see docs/identification.md")
+                        help="camera-noise replicates behind the calibrated sigmas (default 40, and half as many again "
+                             "at twice the noise variance; 0: HAC sigma only, no bias correction); see "
+                             "docs/identification.md")
     parser.add_argument("--simulators", action="store_true",
                         help="also replay the log's /neck/reference on a rigid frictionless plant and on the "
                              "identified plant and compare with the log (§5.6, figure 9; minutes)")
