@@ -199,3 +199,17 @@ def test_a_hidden_payload_on_the_ten_joint_neck_is_named(blind10):
     f = diag.findings[0]
     assert not f.cables and not f.joints
     np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.15)
+
+
+def test_joint_excitation_reads_range_speed_and_reversals_of_known_sines():
+    """Two joints on sines (0.3 rad at 0.5 Hz, 0.1 rad at 1 Hz) from t = 0 to 11 s: after the first
+    second, range 2A, peak speed 2 pi f A and 2 f reversals per second (10 and 20 in 10 s),
+    computed here from the sines' formulas."""
+    from identification.excitation import joint_excitation
+
+    t = np.arange(0.0, 11.0, 0.001)
+    amp, freq = np.array([0.3, 0.1]), np.array([0.5, 1.0])
+    ex = joint_excitation(t, amp * np.sin(2 * np.pi * freq * t[:, None]))
+    np.testing.assert_allclose(ex.angle_range, 2 * amp, rtol=1e-6)
+    np.testing.assert_allclose(ex.speed_max, 2 * np.pi * freq * amp, rtol=1e-5)
+    assert ex.reversals.tolist() == [10, 20]
