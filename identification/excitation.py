@@ -13,7 +13,9 @@ would show if it tracked it exactly, by inverting the model (the trajectory is a
 
 With sensor noise added (``synthetic_measurements``) this is a test bench for the whole
 identification chain that needs no plant.  ``cable_excitation`` measures, per cable, what a run
-(predicted or logged) exercises: the tension range and the motor's speed range and reversals.
+(predicted or logged) exercises: the tension range and the motor's speed range and reversals;
+``joint_excitation`` the same per joint (angle range, peak speed, reversals), which is all a
+per-joint effect (a side spring, a hinge's friction) is seen through.
 
 A neck the paper's laws cannot move (m < N + 1 cables, or another routing) cannot follow the
 paper's joint-space trajectory; its identification experiment is planned in tension space through
