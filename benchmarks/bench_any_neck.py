@@ -16,11 +16,13 @@ identified values of the 10x4 neck against its plant's, per cable.
 ``--detection``: the blind diagnosis matrix on the 10x4 neck instead: per seed, a clean log and
 one log per hidden effect (``tests/open_world/generator.py``: MuJoCo fields and formulas of its
 own, never the candidates' code; 15.6 s reachable-path runs), diagnosed blind (one step, no
-re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one.
+re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one,
+and the hidden effect's own candidate at step 1 whether named or not (its fit at the hidden place,
+F-test p, and where its largest |value| / sigma sits).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
-    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # about 1.5 min CPU per seed
+    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
 """
 
 from __future__ import annotations
