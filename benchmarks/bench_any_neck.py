@@ -16,11 +16,13 @@ identified values of the 10x4 neck against its plant's, per cable.
 ``--detection``: the blind diagnosis matrix on the 10x4 neck instead: per seed, a clean log and
 one log per hidden effect (``tests/open_world/generator.py``: MuJoCo fields and formulas of its
 own, never the candidates' code; 15.6 s reachable-path runs), diagnosed blind (one step, no
-re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one.
+re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one,
+and the hidden effect's own candidate at step 1 whether named or not (its fit at the hidden place,
+F-test p, and where its largest |value| / sigma sits).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
-    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # about 1.5 min CPU per seed
+    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ def detection(directory: str, seeds) -> None:
     from neck_sim.params import example_params
 
     p = example_params("neck10x4")
-    print(f"{'case':16} {'seed':>4}  {'hidden':48} {'verdict':28} {'where':>8} {'estimate':>10} {'hidden':>9}")
+    print(f"{'case':16} {'seed':>4}  {'hidden':48} {'verdict':28} {'where':>8} {'estimate':>10} {'hidden':>9}  its candidate at step 1")
     for seed in seeds:
         for name, level in DETECTION.items():
             spec = make_spec(name, seed, level=level, params=p)
@@ -87,7 +89,24 @@ def detection(directory: str, seeds) -> None:
                 if spec.symbol in f.parameters:
                     est = f.parameters[spec.symbol].value
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
-                  f"{spec.magnitude:9.4g}", flush=True)
+                  f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}", flush=True)
+
+
+def _candidate_fit(diag, spec) -> str:
+    """The hidden effect's own candidate at step 1, named or not: its fitted value +- sigma of the
+    hidden parameter, and the parameter of its effect with the largest |value| / sigma (where the
+    candidate would locate it)."""
+    if spec.symbol is None or not diag.steps:
+        return ""
+    for c in diag.steps[0].candidates:
+        if c.term.name != spec.expect or c.fit is None or spec.symbol not in c.fit.names:
+            continue
+        names = list(c.fit.names)
+        i = names.index(spec.symbol)
+        own = [k for k, n in enumerate(names) if n.split("(")[0] == spec.symbol.split("(")[0]]
+        top = max(own, key=lambda k: abs(c.fit.value[k]) / max(c.fit.sigma[k], 1e-300))
+        return f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}; top {names[top]})"
+    return ""
 
 
 def best(fn, repeat: int):

@@ -13,7 +13,9 @@ would show if it tracked it exactly, by inverting the model (the trajectory is a
 
 With sensor noise added (``synthetic_measurements``) this is a test bench for the whole
 identification chain that needs no plant.  ``cable_excitation`` measures, per cable, what a run
-(predicted or logged) exercises: the tension range and the motor's speed range and reversals.
+(predicted or logged) exercises: the tension range and the motor's speed range and reversals;
+``joint_excitation`` the same per joint (angle range, peak speed, reversals), which is all a
+per-joint effect (a side spring, a hinge's friction) is seen through.
 
 A neck the paper's laws cannot move (m < N + 1 cables, or another routing) cannot follow the
 paper's joint-space trajectory; its identification experiment is planned in tension space through
@@ -41,7 +43,8 @@ from neck_sim.trajectory import Trajectory
 from identification import regressors as reg
 from identification.preprocessing import Measurements, Prepared
 
-__all__ = ["PredictedRun", "predict_run", "CableExcitation", "cable_excitation", "synthetic_measurements", "prepared_from_prediction", "ExcitationQuality",
+__all__ = ["PredictedRun", "predict_run", "CableExcitation", "cable_excitation", "JointExcitation",
+           "joint_excitation", "synthetic_measurements", "prepared_from_prediction", "ExcitationQuality",
            "excitation_quality", "sequences_trajectory", "paper_amplitudes", "OptimisedExcitation",
            "optimise_identification_trajectory"]
 
@@ -116,6 +119,31 @@ def cable_excitation(t: npt.ArrayLike, theta: npt.ArrayLike, tension: npt.ArrayL
         s = np.sign(speed[np.abs(speed[:, c]) > moving, c])
         rev.append(int(np.count_nonzero(np.diff(s))))
     return CableExcitation(ten.min(0), ten.max(0), speed.min(0), speed.max(0), np.array(rev))
+
+
+class JointExcitation(NamedTuple):
+    """Per joint (N,): the angle range max - min (rad), the largest |speed| (rad/s) and the number
+    of times the joint reverses (speed sign changes between samples faster than the threshold)."""
+
+    angle_range: np.ndarray
+    speed_max: np.ndarray
+    reversals: np.ndarray
+
+
+def joint_excitation(t, alpha, *, start: float = 1.0, moving: float = 0.05) -> JointExcitation:
+    """What a run exercises per joint: ``t`` (T,) s and joint angles ``alpha`` (T, N) rad (the
+    camera's, or a plan's); samples before ``start`` s are left out, a reversal counts between
+    samples faster than ``moving`` rad/s (speed from central differences, so camera noise
+    inflates ``speed_max``: smooth the angles first when that matters).  A per-joint effect (a side
+    spring, a hinge's friction) is seen through its joint's range and reversals only: the
+    diagnosis's gap notes ask for 5 deg of motion per joint."""
+    t = np.asarray(t, dtype=float)
+    keep = t >= start
+    a = np.asarray(alpha, dtype=float)
+    speed = np.gradient(a, t, axis=0)[keep]
+    rev = [int(np.count_nonzero(np.diff(np.sign(speed[np.abs(speed[:, j]) > moving, j]))))
+           for j in range(speed.shape[1])]
+    return JointExcitation(np.ptp(a[keep], axis=0), np.abs(speed).max(0), np.array(rev))
 
 
 def synthetic_measurements(run: PredictedRun, params: NeckParams, rng: np.random.Generator, *,

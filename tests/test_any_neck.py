@@ -113,12 +113,12 @@ def test_a_params_file_of_another_routing_is_refused(neck10, tmp_path, capsys):
     assert not (tmp_path / "o.json").exists()
 
 
-def _diagnose_blind(path):
+def _diagnose_blind(path, model="paper"):
     """The blind diagnosis of the detection benchmark: one step, no re-simulation, from the
-    paper's baseline model on the log's own neck record."""
+    baseline ``model`` (the paper's unless the case removes a term) on the log's own neck record."""
     from identification.diagnosis import DiagnosisSettings, diagnose_log
 
-    return diagnose_log(path, model="paper", settings=DiagnosisSettings(resimulate=False, max_steps=1), progress=False)
+    return diagnose_log(path, model=model, settings=DiagnosisSettings(resimulate=False, max_steps=1), progress=False)
 
 
 def test_the_clean_ten_joint_log_is_diagnosed_none(neck10):
@@ -130,16 +130,86 @@ def test_the_clean_ten_joint_log_is_diagnosed_none(neck10):
     assert diag.leftover is not None and not diag.leftover.significant
 
 
-def test_a_hidden_payload_on_the_ten_joint_neck_is_named(tmp_path):
+@pytest.fixture(scope="module")
+def blind10(tmp_path_factory):
+    """(name, seed, level) -> (spec, diagnosis) of a blind 15.6 s log of the 10x4 neck, simulated and
+    diagnosed once when first asked (about 80 s each on one core: 60 s of plant, 20 s of diagnosis)."""
+    from open_world.generator import make_spec, simulate_reachable
+
+    root, cache, p = tmp_path_factory.mktemp("blind10"), {}, example_params("neck10x4")
+
+    def get(name, seed, level=1.0):
+        if (name, seed) not in cache:
+            spec = make_spec(name, seed, level=level, params=p)
+            cache[name, seed] = spec, _diagnose_blind(simulate_reachable(root / f"{name}_{seed}.mcap", spec, seed,
+                                                                         moves=8), spec.model)
+        return cache[name, seed]
+
+    return get
+
+
+def _own_candidate(diag, spec):
+    """The hidden effect's own candidate at step 1, whether or not it was named."""
+    return next(c for c in diag.steps[0].candidates if c.term.name == spec.expect)
+
+
+def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge(blind10):
+    """Joint friction hidden in joint 5 (MuJoCo's hinge frictionloss, seed 1): the candidate's
+    column takes the joint speed from the camera when C < N (4 motor speeds do not determine 10
+    joint speeds; eq 35's minimum-norm solution read 0.015 N m of the 0.036 hidden).  Its largest
+    tau_j / sigma is at the hidden joint and the value within 25 % (seed 1: +15 %).  The verdict
+    itself misses it on this short log (11 parameters at once: p 0.56; docs/your-own-neck.md)."""
+    spec, diag = blind10("joint_friction", SEED)
+    fit = _own_candidate(diag, spec).fit
+    names = list(fit.names)
+    own = [k for k, n in enumerate(names) if n.startswith("tau_j(")]
+    top = max(own, key=lambda k: fit.value[k] / fit.sigma[k])
+    assert names[top] == spec.symbol, (spec.description, names[top])
+    np.testing.assert_allclose(fit.value[top], spec.magnitude, rtol=0.25)
+
+
+def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
+    """A FIFO of commanded forces (``open_world.generator``), diagnosed blind: named, its delay
+    within the 3-joint tests' 10 %."""
+    spec, diag = blind10("actuation_delay", SEED)
+    assert diag.verdict == "actuation_delay"
+    np.testing.assert_allclose(diag.findings[0].parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+
+
+def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(blind10):
+    """A tanh Coulomb force on cable 1's commanded force (seed 1; the baseline without eq 36's
+    friction, as in the 3-joint tests): ``dry_friction`` named first, on cable 1, within 10 %
+    (seed 1: -5.7 %).  ``pulley_friction`` (its tension-proportional part) also fits this short
+    log's reversals: the verdict lists both rather than pick, as the 3-joint verdicts do."""
+    spec, diag = blind10("dry_friction", SEED)
+    names = list(diag.verdict) if isinstance(diag.verdict, list) else [diag.verdict]
+    assert names[0] == "dry_friction", diag.verdict
+    f = diag.findings[0]
+    assert f.cables == [c + 1 for c in spec.cables]
+    np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+
+
+def test_a_hidden_payload_on_the_ten_joint_neck_is_named(blind10):
     """A payload hidden by MuJoCo's head body (mass, centre and inertia of a 2 cm cube 6 mm off the
     bar's middle: ``open_world.generator``), diagnosed blind: named alone, at the head (no cable,
     no joint), its mass within 15 % (seed 1: -13 %; the 3-joint tests hold 10 %, which this short
-    10-joint log does not reach: benchmarks/bench_any_neck.py --detection, 9-15 % low over seeds 1-3)."""
-    from open_world.generator import make_spec, simulate_reachable
-
-    spec = make_spec("payload", SEED, params=example_params("neck10x4"))
-    diag = _diagnose_blind(simulate_reachable(tmp_path / "payload.mcap", spec, SEED, moves=8))
+    10-joint log does not reach: benchmarks/bench_any_neck.py --detection, 9-16 % low over seeds 1-3)."""
+    spec, diag = blind10("payload", SEED)
     assert diag.verdict == "payload"
     f = diag.findings[0]
     assert not f.cables and not f.joints
     np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.15)
+
+
+def test_joint_excitation_reads_range_speed_and_reversals_of_known_sines():
+    """Two joints on sines (0.3 rad at 0.5 Hz, 0.1 rad at 1 Hz) from t = 0 to 11 s: after the first
+    second, range 2A, peak speed 2 pi f A and 2 f reversals per second (10 and 20 in 10 s),
+    computed here from the sines' formulas."""
+    from identification.excitation import joint_excitation
+
+    t = np.arange(0.0, 11.0, 0.001)
+    amp, freq = np.array([0.3, 0.1]), np.array([0.5, 1.0])
+    ex = joint_excitation(t, amp * np.sin(2 * np.pi * freq * t[:, None]))
+    np.testing.assert_allclose(ex.angle_range, 2 * amp, rtol=1e-6)
+    np.testing.assert_allclose(ex.speed_max, 2 * np.pi * freq * amp, rtol=1e-5)
+    assert ex.reversals.tolist() == [10, 20]

@@ -52,6 +52,11 @@ class JointFrictionColumns(EffectColumns):
         """Torque block: per joint, the friction torque of 1 N m per hinge (sign of eq 30's g:
         it adds to the torque the cables must supply along the motion)."""
         def compute():
+            if data.C < data.n:
+                # C < N motor speeds do not determine N joint speeds (eq 35 has a null space: its
+                # least-squares solution is the minimum-norm one, which halves a lone joint's
+                # friction column on the 10-joint, 4-cable neck): the camera's speed instead
+                return hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
             speed = joint_speed_from_encoders(data.theta_dot_fast, alpha_fast, data.params)
             fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / shape["width"])
