@@ -40,7 +40,8 @@ import numpy as np
 from neck_sim.analytic import cable_lengths, linkage_dynamics, transmission_matrix
 from neck_sim.effects import Effects
 from neck_sim.logs import Log, read_log
-from neck_sim.params import NeckParams, from_dict
+from neck_sim.params import NeckParams
+from neck_sim.plant_spec import PlantSpec
 
 __all__ = ["Relation", "CheckResult", "check_log", "LENGTH_TOLERANCE", "TORQUE_TOLERANCE_ABS",
            "TORQUE_TOLERANCE_REL", "TORQUE_TOLERANCE_GROSS", "TORQUE_WINDOW"]
@@ -99,13 +100,15 @@ class CheckResult:
 
 
 def _model(log: Log) -> tuple[NeckParams, Effects, bool, str]:
-    recorded = log.run_value("plant_params")
-    effects = log.run_value("effects")
-    effects = Effects.from_dict(effects) if isinstance(effects, dict) else Effects()
-    rigid = bool(log.run_value("rigid_cables") is True)
-    if isinstance(recorded, dict):
-        return effects.true_params(from_dict(recorded)), effects, rigid, "plant parameters of the run record"
-    return log.params, effects, rigid, "nominal constants of the neck record (the run record has no plant_params)"
+    """(true constants, effects, rigid cables, where the constants came from) of the log's plant,
+    read from its run record by :class:`neck_sim.plant_spec.PlantSpec`."""
+    try:
+        spec, assumed = PlantSpec.read_record(log.run_info or {}, nominal=log.params)
+    except ValueError as exc:
+        raise ValueError(f"{log.path}: {exc}") from None
+    source = ("nominal constants of the neck record (the run record has no plant_params)" if "params" in assumed
+              else "plant parameters of the run record")
+    return spec.effects.true_params(spec.params), spec.effects, spec.rigid_cables, source
 
 
 def _worst(err: np.ndarray, tol, t: np.ndarray, name, description, unit, tol_value) -> Relation:

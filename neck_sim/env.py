@@ -317,8 +317,9 @@ class TrackingTask(base.Task):
         if self._log_path is None:
             return
         from neck_sim.logs import LogWriter
+        # the plant's spec, as every other loop records it, so that `neck-sim replay` rebuilds it
         info = {"source": "neck_sim.env", "episode": self._episode, "trajectory": getattr(self.trajectory, "name", "custom"),
-                "effects": list(plant.effects.names()), "plant_seed": plant.seed}
+                **PlantSpec.of(plant).to_record()}
         self._writer = LogWriter(self.log_file(), plant.params, mjcf_xml=plant.xml, run_info=info)
 
     def close_log(self) -> None:
