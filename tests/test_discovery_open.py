@@ -23,7 +23,7 @@ from open_world.generator import OUT_OF_VOCABULARY, UNEXPLAINED, make_spec, simu
 
 SEEDS = (1, 2, 3)
 NAMED = ("spring_error", "joint_friction", "camera_delay", "viscous_friction", "dry_friction", "stribeck_friction",
-         "payload", "actuation_delay", "pretension")
+         "payload", "actuation_delay", "actuation_delay_one", "pretension")
 FAST = DiagnosisSettings(resimulate=False, max_steps=1)
 
 #: Relative tolerance of each magnitude, 10 % unless stated.  (Joint friction holds 10 %: the

@@ -83,7 +83,7 @@ def paper_model() -> tuple[str, ...]:
 
 def grid_of(name: str) -> dict[str, tuple]:
     """Shape parameter -> the grid a candidate ``name`` is tried at (searched shapes only)."""
-    return {sh.name: tuple(sh.grid) for sh in effect_columns.get(name).shapes if sh.grid}
+    return {sh.name: tuple(sh.grid) for sh in effect_columns.get(name).shapes if sh.grid and not sh.per_cable}
 
 
 def __getattr__(name: str):
@@ -300,7 +300,10 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     state = state or initial_state(data)
     delay = float(sum(t.identification.fit_delay(dict(t.shape)) for t in model.terms))
     data = data.camera_shifted(sum(t.identification.fit_camera_shift(dict(t.shape)) for t in model.terms))
-    y_fast, y_slow = data.observations(delay)
+    motor_delays = sum((t.identification.fit_motor_delays(dict(t.shape), data.C) for t in model.terms),
+                       np.zeros(data.C))
+    y_fast, y_slow = (data.observations_per_motor(delay + motor_delays) if np.any(motor_delays)
+                      else data.observations(delay))
     for term in model.terms:
         offset = term.identification.fit_force_offset(data, dict(term.shape))
         if offset is not None:

@@ -138,6 +138,18 @@ class MeasuredData:
                 self._y_cache.pop(next(iter(self._y_cache)))
         return self._y_cache[key]
 
+    def observations_per_motor(self, delays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`observations` with a delay (C,) s of its own on each motor's command: cable j's
+        column is that of ``observations(delays[j])`` (the filter chain acts column by column)."""
+        delays = np.asarray(delays, dtype=float)
+        if delays.shape != (self.C,):
+            raise ValueError(f"observations_per_motor: expected {self.C} delays, got shape {delays.shape}")
+        if np.all(delays == delays[0]):
+            return self.observations(float(delays[0]))
+        cols = [self.observations(float(d)) for d in delays]
+        return (np.stack([c[0][:, j] for j, c in enumerate(cols)], axis=1),
+                np.stack([c[1][:, j] for j, c in enumerate(cols)], axis=1))
+
     def torque_observation(self, y_slow: np.ndarray) -> np.ndarray:
         """y_T = Z y_C - M_m alpha_ddot - c_m - g, (S, N) N m."""
         return np.einsum("sij,sj->si", self.Z, y_slow) - self.linkage

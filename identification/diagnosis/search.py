@@ -44,16 +44,26 @@ def search_shape(ctx: StepContext, name: str, trial):
     (``Shape.refine``) then searched between the best grid point's neighbours (bounded, to 2 % of
     that interval on the shape's scale); None when nothing fits."""
     per_cable = next((sh for sh in effect_columns.get(name).shapes if sh.per_cable), None)
-    if per_cable is not None:
+    if per_cable is not None and per_cable.search == "cable_law":
         return search_per_cable_offset(ctx, trial, name, per_cable)
     entries = [trial(Term(name, shape)) for shape in shape_grid(name)]
     done = [e for e in entries if e is not None]
     best = min(done, key=trial_score) if done else None
     refine = refined_shape(name)
-    if refine is None or best is None:
-        return best
-    key, log_scale = refine.name, refine.refine == "log"
-    grid = sorted(refine.grid)
+    if refine is not None and best is not None:
+        best = _refine_between(trial, name, refine, refine.name, best)
+    if per_cable is not None:           # the shape on one cable at a time, kept when it fits better
+        one = search_one_cable(ctx, trial, name, per_cable)
+        done = [e for e in (best, one) if e is not None]
+        best = min(done, key=trial_score) if done else None
+    return best
+
+
+def _refine_between(trial, name: str, shape: Shape, key: str, best):
+    """``best`` (a ``trial`` entry whose term sets ``key`` on ``shape``'s grid) or the minimiser of
+    the training score between that grid point's neighbours, whichever scores lower."""
+    log_scale = shape.refine == "log"
+    grid = sorted(shape.grid)
     i = grid.index(best[1].get(key))
     lo = grid[i - 1] if i > 0 else (0.0 if not log_scale else grid[0] / 2)
     hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]
@@ -61,6 +71,19 @@ def search_shape(ctx: StepContext, name: str, trial):
     a, b = (np.log(lo), np.log(hi)) if log_scale else (lo, hi)
     u = minimise_bounded(lambda u: trial_score(trial(Term(name, ((key, round(to(u), 6)),)))), a, b, 0.02 * (b - a))
     return min([best, trial(Term(name, ((key, round(to(u), 6)),)))], key=trial_score)
+
+
+def search_one_cable(ctx: StepContext, trial, name: str, shape: Shape):
+    """Best ``trial`` entry of candidate ``name`` with its per-cable ``shape`` (``search="fit"``)
+    non-zero on one cable only (key ``<shape.name>_<i>``): whole fits on ``shape.grid`` cable by
+    cable, then refined linearly between the best grid point's neighbours; None when nothing fits."""
+    entries = [trial(Term(name, ((f"{shape.name}_{j + 1}", v),))) for j in range(ctx.data.C) for v in shape.grid]
+    done = [e for e in entries if e is not None]
+    if not done:
+        return None
+    best = min(done, key=trial_score)
+    key = best[1].shape[0][0]
+    return _refine_between(trial, name, Shape(shape.name, shape.unit, grid=shape.grid, refine="linear"), key, best)
 
 
 def trial_score(entry) -> float:
@@ -123,6 +146,8 @@ def retune_shapes(data: MeasuredData, model: ModelSpec, split: Split, settings: 
             continue
         key, log_scale, span = shape.name, shape.refine == "log", shape.span
         v0 = term.get(key)
+        if v0 is None:              # the term uses another of its shapes (a delay on one motor)
+            continue
 
         def with_value(v, term=term, key=key, model=model):
             t = Term(term.name, tuple((k, (v if k == key else x)) for k, x in term.shape))

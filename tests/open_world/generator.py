@@ -197,7 +197,7 @@ def make_spec(name: str, seed: int, level: float = 1.0, n_joints: int = 3, param
             out[cable] = late[cable]
             return out
         return Spec(name, "actuation_delay", lag / p.control.rate_hz, Hooks(force=force), p,
-                    symbol=None if one else "delay", cables=(cable,) if one else (),
+                    symbol=f"motor_delay({cable + 1})" if one else "delay", cables=(cable,) if one else (),
                     description=f"command FIFO of {lag} periods ({1e3 * lag / p.control.rate_hz:.0f} ms)"
                                 + (f" on motor {cable + 1} only" if one else ""))
     if name == "camera_delay":                     # frames restamped late

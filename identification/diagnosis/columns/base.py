@@ -11,7 +11,7 @@ nothing, so a class overrides only what its effect needs:
   :class:`ColumnData` (what the columns may read of the measured data, nothing else) and a
   :class:`FitContext` (the fit's current elongations and tension estimates);
 * ``shapes`` -- the nonlinear :class:`Shape` parameters (default, search grid, refinement);
-* ``fit_delay(shape)``, ``fit_camera_shift(shape)``, ``fit_elongation_offset(shape, n_cables)``,
+* ``fit_delay(shape)``, ``fit_motor_delays(shape, n_cables)``, ``fit_camera_shift(shape)``, ``fit_elongation_offset(shape, n_cables)``,
   ``fit_elongation_series(data, shape)``, ``fit_force_offset(data, shape)`` -- effects that shift
   the observations, the camera or the elongations instead of adding columns
   (``fit_cable_offset`` the per-cable trial offset of a ``Shape.per_cable`` search);
@@ -125,7 +125,9 @@ class Shape:
     by a bounded 1-D search (None: grid only); ``span`` -- the later re-tuning range (factor for
     ``log``, +- units for ``linear``); ``profile_step`` -- step of the profile-likelihood sigma in
     reports (None: reported without sigma).  ``per_cable``: one value per cable, keys
-    ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable.
+    ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable: ``search`` = ``"cable_law"``
+    on that cable's law alone (an elongation offset), ``"fit"`` by whole fits with the shape on
+    one cable at a time, on ``grid`` then refined between neighbours (a delay on one motor).
     """
 
     name: str
@@ -137,10 +139,13 @@ class Shape:
     profile_step: float | None = None
     per_cable: bool = False
     bounds: tuple | None = None
+    search: str = "cable_law"
 
     def __post_init__(self):
         if self.refine not in (None, "log", "linear"):
             raise ValueError(f"Shape.refine: None, 'log' or 'linear', got {self.refine!r}")
+        if self.search not in ("cable_law", "fit"):
+            raise ValueError(f"Shape.search: 'cable_law' or 'fit', got {self.search!r}")
 
 
 class Design(NamedTuple):
@@ -196,6 +201,12 @@ class EffectColumns:
     def fit_delay(cls, shape: dict) -> float:
         """Delay (s) of the commanded force this term imposes on the observations."""
         return 0.0
+
+    @classmethod
+    def fit_motor_delays(cls, shape: dict, n_cables: int) -> np.ndarray:
+        """(n_cables,) s by which this term delays each motor's commanded force on top of
+        :meth:`fit_delay` (a delay on some motors only)."""
+        return np.zeros(n_cables)
 
     @classmethod
     def fit_camera_shift(cls, shape: dict) -> float:
