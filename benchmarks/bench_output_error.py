@@ -19,7 +19,7 @@ simulated first unless ``--log`` names one; ``--duration S`` keeps its first S s
 Both fit the same 16 parameters (f_s, k, lambda, c_a per cable) from the same start on the same
 integrator.  Printed side by side: the largest relative error per group against the plant's truth,
 rollouts, CPU and wall time; then the per-rollout cost of the engine (``mujoco.batch`` threads)
-against a lockstep :class:`~neck_sim.plant.PlantBatch` and serial :meth:`Plant.step`, measured on
+against a lockstep :class:`~neck_sim.batch.PlantBatch` and serial :meth:`Plant.step`, measured on
 the same parameter sets.
 
     python benchmarks/bench_output_error.py                    # the whole 85 s run (long: sysid)

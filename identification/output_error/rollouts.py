@@ -18,7 +18,7 @@ the logged forces.  :func:`rollout` runs those open-loop re-simulations:
   warnings, as :class:`~neck_sim.plant.PlantDivergedError`) stops there: its outputs from that
   control period on are NaN, ``diverged[i]`` is True and ``reasons[i]`` says why; nothing raises.
 
-Why threads over MuJoCo's batch and not a lockstep :class:`~neck_sim.plant.PlantBatch`: the batch
+Why threads over MuJoCo's batch and not a lockstep :class:`~neck_sim.batch.PlantBatch`: the batch
 runs many sub-steps per call with no Python between them and uses every core; on the 85 s
 identification log it costs less CPU per rollout even on one thread (``benchmarks/
 bench_output_error.py`` measures both).  It needs the plant's C callback (MuJoCo's batch refuses a
