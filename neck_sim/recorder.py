@@ -139,7 +139,8 @@ class Recorder:
         return (np.asarray(self.camera_t[run], dtype=float).reshape(-1),
                 np.asarray(self.camera_alpha[run], dtype=float).reshape(-1, self.n_joints))
 
-    def topics(self, run: int = 0, *, rows: slice | None = None, frames: slice | None = None) -> dict[str, tuple[np.ndarray, ...]]:
+    def topics(self, run: int = 0, *, rows: slice | None = None,
+               frames: slice | None = None) -> dict[str, tuple[np.ndarray, ...]]:
         """Contract topic name -> (t, *fields) arrays of run ``run`` in contract field order, for
         the topics this record holds (order :data:`TOPIC_ORDER`); ``rows`` (default every row)
         and ``frames`` (default every camera frame) select a part."""
@@ -165,7 +166,8 @@ class Recorder:
         for name, arrays in self.topics(run, rows=rows, frames=frames).items():
             sink.write_batch(name, *arrays)
 
-    def write_log(self, path: str | os.PathLike, params: NeckParams | None, *, run: int = 0, mjcf_xml: str | None = None,
+    def write_log(self, path: str | os.PathLike, params: NeckParams | None, *, run: int = 0,
+                  mjcf_xml: str | None = None,
                   run_info: dict | None = None) -> str:
         """Write run ``run`` as the contract log ``path`` (atomic: nothing is left under ``path``
         if writing fails); ``params`` the nominal constants of the ``neck`` record, ``run_info``
