@@ -31,14 +31,14 @@ The metrics are the paper's (:mod:`controllers.run_result`).
 from __future__ import annotations
 
 import os
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Protocol, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
-from controllers.computed_torque import (ComputedTorqueController, ControllerState, advance, control_rows,
+from controllers.computed_torque import (ComputedTorqueController, ControllerState, ControlStep, advance, control_rows,
                                         output_slices, reference_table, step_error)
 from controllers.run_result import SLACK_TENSION, Metrics, RunResult, compute_metrics
-from controllers.trajectories import Trajectory
 from neck_sim.batch import PlantBatch, clip_forces, delayed_controls
 from neck_sim.jit import kernel
 from neck_sim.live import active as active_live_view
@@ -47,8 +47,48 @@ from neck_sim.plant import Plant
 from neck_sim.recorder import Recorder
 from neck_sim.replay import plant_run_info
 
+if TYPE_CHECKING:
+    from neck_sim.live import LiveView
+    from neck_sim.logs import LogWriter
+    from neck_sim.params import NeckParams
+
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "LOCKSTEP_GROUP", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
-           "compute_metrics"]
+           "compute_metrics", "LoopController", "LoopTrajectory"]
+
+
+class LoopController(Protocol):
+    """What a closed-loop run asks of a controller: :class:`ComputedTorqueController` (the
+    compiled path), :class:`controllers.elastic_lqr.ElasticLQRController`,
+    :class:`controllers.underactuated.UnderactuatedController` or anything with their interface."""
+
+    @property
+    def params(self) -> NeckParams: ...
+
+    @property
+    def law(self) -> int: ...
+
+    def describe(self) -> str: ...
+
+    def motor_reference(self, sample: Any) -> Any: ...
+
+    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None: ...
+
+    def step(self, theta: npt.ArrayLike, ref: Any) -> ControlStep: ...
+
+
+class LoopTrajectory(Protocol):
+    """What a closed-loop run asks of a trajectory: :class:`controllers.trajectories.Trajectory`,
+    :class:`controllers.underactuated.ReachablePath` or anything with their interface."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def duration(self) -> float: ...
+
+    def sample(self, t: npt.ArrayLike) -> Any: ...
+
+    def check_workspace(self, params: NeckParams) -> None: ...
 
 # Run the periods between events (camera frames, failures) in one compiled call (_run_periods) when
 # every controller is compiled and every plant in a native PlantBatch.
@@ -105,7 +145,7 @@ def _run_periods(k0, k1, control_k1, enc, plant_out, theta, rec_theta, rec_truth
     return k1, 0, 0
 
 
-def _log_writer(log_path, plant, run_info):
+def _log_writer(log_path: str | os.PathLike | None, plant: Any, run_info: dict) -> LogWriter | None:
     if log_path is None:
         return None
     try:
@@ -115,7 +155,7 @@ def _log_writer(log_path, plant, run_info):
     return LogWriter(log_path, plant.params, mjcf_xml=getattr(plant, "xml", None), run_info=run_info)
 
 
-def run_closed_loop(plant: Any, controller: ComputedTorqueController, trajectory: Trajectory, *,
+def run_closed_loop(plant: Any, controller: LoopController, trajectory: LoopTrajectory, *,
                     log_path: str | os.PathLike | None = None, progress: bool = True, reset: bool = True,
                     run_info: dict | None = None) -> RunResult:
     """Run ``trajectory`` closed loop on ``plant`` with ``controller`` at the control rate.
@@ -133,8 +173,9 @@ def run_closed_loop(plant: Any, controller: ComputedTorqueController, trajectory
 LOCKSTEP_GROUP = 16      # runs advanced together at most; larger batches go group after group
 
 
-def run_lockstep(plants: Sequence[Any], controllers: Sequence[ComputedTorqueController],
-                 trajectories: Sequence[Trajectory], *, log_paths: Sequence[str | os.PathLike | None] | None = None,
+def run_lockstep(plants: Sequence[Any], controllers: Sequence[LoopController],
+                 trajectories: Sequence[LoopTrajectory], *,
+                 log_paths: Sequence[str | os.PathLike | None] | None = None,
                  progress: bool = True, reset: bool = True, run_infos: Sequence[dict | None] | None = None,
                  stop_on_error: bool = False) -> list:
     """K independent closed-loop runs advanced together, period by period (lockstep batch).
@@ -189,13 +230,14 @@ class _Lockstep:
     :meth:`fused` between events, else period by period :meth:`record`, :meth:`control`,
     :meth:`step`), and the results (:meth:`results`)."""
 
-    def __init__(self, plants, controllers, trajectories, reset: bool, stop_on_error: bool):
+    def __init__(self, plants: list[Any], controllers: list[LoopController], trajectories: list[LoopTrajectory],
+                 reset: bool, stop_on_error: bool) -> None:
         self.plants, self.controllers, self.trajectories = plants, controllers, trajectories
         self.stop_on_error, self.K = stop_on_error, len(plants)
         self.n = n = controllers[0].params.n_joints
         self.rate = rate = controllers[0].params.control.rate_hz
-        steps = None
-        self.refs = []
+        lengths: list[int] = []
+        self.refs: list[Any] = []
         for i, (plant, ctrl, traj) in enumerate(zip(plants, controllers, trajectories)):
             p = ctrl.params
             traj.check_workspace(p)
@@ -205,26 +247,28 @@ class _Lockstep:
             if abs(p.control.rate_hz - rate) > 1e-9 or p.n_joints != n:
                 raise ValueError(f"lockstep run {i}: every controller needs N = {n} and {rate} Hz")
             length = int(round(traj.duration * rate)) + 1
-            if steps is not None and length != steps:
-                raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {steps}")
-            steps = length
-            self.refs.append(ctrl.motor_reference(traj.sample(np.arange(steps) / rate)))
-        self.steps = steps
+            if lengths and length != lengths[0]:
+                raise ValueError(f"lockstep run {i}: {length} control periods, the first run has {lengths[0]}")
+            lengths.append(length)
+            self.refs.append(ctrl.motor_reference(traj.sample(np.arange(length) / rate)))
+        self.steps = lengths[0]
         self.m = m = controllers[0].params.n_cables
         if any(c.params.n_cables != m for c in controllers):
             raise ValueError(f"lockstep: every controller needs the same number of cables ({m})")
         self.compiled = all(isinstance(c, ComputedTorqueController) for c in controllers)
+        compiled = [c for c in controllers if isinstance(c, ComputedTorqueController)]
         for plant, ctrl, ref in zip(plants, controllers, self.refs):
             if reset:
                 plant.reset(alpha0=ref.alpha[0])
             ctrl.reset(ref.alpha[0], plant.encoders())
         if self.compiled:
             self.tables = np.stack([reference_table(r) for r in self.refs])
-            self.state = ControllerState.stack([c.state for c in controllers])
+            self.state = ControllerState.stack([c.state for c in compiled])
             self.status = self.state.status
-        self.batch, self.writers = None, [None] * self.K
+        self.batch: PlantBatch | None = None
+        self.writers: list[LogWriter | None] = [None] * self.K
 
-    def open(self, log_paths, run_infos) -> None:
+    def open(self, log_paths: list[str | os.PathLike | None], run_infos: list[dict | None]) -> None:
         """The records, the plants' batch, the logs and the live view."""
         K, n, m, steps, rate = self.K, self.n, self.m, self.steps, self.rate
         plants = self.plants
@@ -233,8 +277,10 @@ class _Lockstep:
                        "law": int(ctrl.law), "controller": ctrl.describe(), "rate_hz": rate, **(info or {})}
                       for plant, ctrl, traj, info in zip(plants, self.controllers, self.trajectories, run_infos)]
         self.rec = rec = Recorder(n, m, steps, runs=K, truth=True, reference=True, estimate=True)
+        alpha_d = rec.alpha_d
+        assert alpha_d is not None                  # recorded: reference=True
         for i, ref in enumerate(self.refs):
-            rec.alpha_d[i] = ref.alpha
+            alpha_d[i] = ref.alpha
         self.columns = output_slices(n, m)
         self.outs = np.zeros((K, steps, max(sl.stop for sl in self.columns.values())))   # rows of output_slices
         self.forces = self.outs[:, :, self.columns["forces"]]
@@ -251,7 +297,7 @@ class _Lockstep:
             rec.t[self.rows] = (batch.k[:, None] + batch.nsub * np.arange(steps)) * batch.dt
         self.position = {i: j for j, i in enumerate(self.batched)}         # run -> its row in the batch
         self.writers = [_log_writer(path, plant, info) for path, plant, info in zip(log_paths, plants, self.infos)]
-        self.live = active_live_view() if K == 1 else None
+        self.live: LiveView | None = active_live_view() if K == 1 else None
         self.shown = [0, 0]            # periods and camera frames of the run already sent to the live view
         if self.live is not None:
             self.live.new_run()
@@ -284,6 +330,7 @@ class _Lockstep:
                 self.record(k)
                 self.control(k)
             if stage == 2:                            # stepped by _run_periods: a plant diverged
+                assert self.batch is not None         # stage 2 comes from the fused path only
                 for j in self.batch.stop_diverged():
                     self.fail(self.batched[j], self.t_of(self.batched[j], k), self.batch.errors[j])
             else:
@@ -295,6 +342,7 @@ class _Lockstep:
             self.show(self.steps)
 
     def _kernel_args(self) -> tuple:
+        assert self.batch is not None               # the fused path needs the batch
         step, state, rec = self.batch.fused_step(), self.state, self.rec
         return (step.encoders, step.out, self.theta, rec.theta, rec.truth, state.values, state.flags, state.const,
                 state.cables, state.linkage, state.geometry, state.cases, state.Z, self.tables, self.outs,
@@ -305,6 +353,7 @@ class _Lockstep:
         """The quiet periods from k in one compiled call, and the next one (an event) recorded and
         controlled; returns (the period reached, its stage)."""
         batch = self.batch
+        assert batch is not None                    # the fused path needs the batch
         quiet = min(batch.quiet_periods(), self.steps - k, _MAX_FUSED)
         previous = DISPATCH.enter("native") if quiet else None     # quiet periods: native only
         try:
@@ -322,6 +371,7 @@ class _Lockstep:
         rec, batch, rows = self.rec, self.batch, self.rows
         if batch is not None:
             self.theta[rows] = rec.theta[rows, k] = batch.encoders()
+            assert rec.truth is not None            # recorded: truth=True
             rec.truth[rows, k] = batch.out
         for i in self.alone:
             if self.alive[i]:
@@ -340,13 +390,13 @@ class _Lockstep:
                 _store(self.outs[i, k], self.controllers[i].step(self.theta[i].copy(), self.refs[i].at(k)),
                        self.columns)
             except (ValueError, RuntimeError) as exc:
-                self.fail(i, self.t_of(i, k), exc)
+                self.fail(int(i), self.t_of(int(i), k), exc)
 
     def step(self, k: int) -> None:
         """The controllers' failures of period k, then the plants' step with its forces."""
         batch, rec = self.batch, self.rec
         if self.compiled and np.count_nonzero(self.status):     # a quarter of status.any()'s call overhead
-            for i in np.flatnonzero((self.status != 0) & self.alive):
+            for i in np.flatnonzero((self.status != 0) & self.alive).tolist():
                 self.fail(i, self.t_of(i, k), step_error(int(self.status[i]), self.state.values[i, 0, :self.n],
                                                          self.controllers[i].params.geometry.alpha_max))
         if batch is not None:
@@ -376,7 +426,7 @@ class _Lockstep:
         if self.compiled:
             self.status[i] = self.status[i] or -1       # the controller stops with its plant
         j = self.position.get(i)
-        if j is not None and self.batch.active[j]:
+        if j is not None and self.batch is not None and self.batch.active[j]:
             self.batch.stop(j, err)                     # the plant stops with its controller
 
     def t_of(self, i: int, k: int) -> float:
@@ -388,11 +438,13 @@ class _Lockstep:
         """The controller's commanded forces and estimate of run i over ``rows`` into the record."""
         cols = self.columns
         self.rec.force[i, rows] = self.outs[i, rows, cols["forces"]]
+        assert self.rec.alpha_hat is not None       # recorded: estimate=True
         self.rec.alpha_hat[i, rows] = self.outs[i, rows, cols["alpha_hat"]]
 
     def show(self, k1: int) -> None:
         """Periods [shown, k1) of the (single) run to the live view: between compiled chunks."""
         k0, f0 = self.shown
+        assert self.live is not None                # shown only to a live view
         self._outputs(0, slice(k0, k1))
         self.rec.write(self.live, 0, rows=slice(k0, k1), frames=slice(f0, None))
         self.shown[:] = [k1, len(self.rec.camera_t[0])]
@@ -401,9 +453,10 @@ class _Lockstep:
         """Each run's RunResult (its log written and closed), or the error that stopped it."""
         results = []
         for i in range(self.K):
+            writer = self.writers[i]
             if self.errors[i] is not None:
-                if self.writers[i] is not None:
-                    self.writers[i].abort()
+                if writer is not None:
+                    writer.abort()
                 results.append(self.errors[i])
                 continue
             results.append(self._result(i))
@@ -440,7 +493,7 @@ class _Lockstep:
             self.batch.close()
 
 
-def _store(row: np.ndarray, out, columns: dict) -> None:
+def _store(row: np.ndarray, out: ControlStep, columns: dict) -> None:
     """A controller's ControlStep into its output row (columns of :func:`output_slices`)."""
     for name, sl in columns.items():
         row[sl] = getattr(out, name)

@@ -12,7 +12,7 @@ import datetime
 import os
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
-from controllers.closed_loop import RunResult, run_closed_loop
+from controllers.closed_loop import LoopController, RunResult, run_closed_loop
 from controllers.computed_torque import ComputedTorqueController
 from controllers.trajectories import Trajectory
 from neck_sim.params import NeckParams
@@ -44,7 +44,7 @@ def default_log_path(trajectory: str, label: str, directory: str = "logs") -> st
     return os.path.join(directory, f"simulate-{trajectory}-{label}-{stamp}.mcap")
 
 
-def _make_plant(params: NeckParams, rigid_cables: bool, seed: int):
+def _make_plant(params: NeckParams, rigid_cables: bool, seed: int) -> Plant:
     from neck_sim.plant import Plant
     return Plant(params, seed=seed, rigid_cables=rigid_cables)
 
@@ -74,7 +74,7 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
     info = {"experiment": "control test", "seed": seed, "rigid_cables": rigid_cables}
     if controller == "elastic-lqr":
         from controllers.elastic_lqr import ElasticLQRController
-        ctrl = ElasticLQRController(model, **dict(controller_kwargs or {}))
+        ctrl: LoopController = ElasticLQRController(model, **dict(controller_kwargs or {}))
         return {"elastic lqr": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
                                                log_path=log_path("elastic-lqr") if log_path else None,
                                                run_info={**info, "controller": "elastic-lqr"})}
@@ -135,7 +135,8 @@ def format_control_table(results: Mapping[str, RunResult], compare_with_paper: b
              "slack/sat = samples with a slack cable / a force clipped at f_max", head, "-" * len(head)]
     for label, res in results.items():
         m = res.metrics
-        paper = PAPER_CONTROL_TESTS.get(res.info.get("law"), {})
+        law = res.info.get("law")
+        paper = {} if law is None else PAPER_CONTROL_TESTS.get(law, {})
         values = {"run": f"{label:<{run_w}}", "e": _f(m.tracking_error), "e_a cam": _f(m.estimation_error_camera, 7),
                   "e_a true": _f(m.estimation_error_true, 8), "e true": _f(m.tracking_error_true),
                   "f min": _f(m.force_min), "f max": _f(m.force_max), "f mean": _f(m.force_mean),

@@ -130,7 +130,8 @@ class JointExcitation(NamedTuple):
     reversals: np.ndarray
 
 
-def joint_excitation(t, alpha, *, start: float = 1.0, moving: float = 0.05) -> JointExcitation:
+def joint_excitation(t: npt.ArrayLike, alpha: npt.ArrayLike, *, start: float = 1.0,
+                     moving: float = 0.05) -> JointExcitation:
     """What a run exercises per joint: ``t`` (T,) s and joint angles ``alpha`` (T, N) rad (the
     camera's, or a plan's); samples before ``start`` s are left out, a reversal counts between
     samples faster than ``moving`` rad/s (speed from central differences, so camera noise

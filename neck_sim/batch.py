@@ -31,6 +31,7 @@ import math
 from typing import Any, Iterable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from neck_sim.jit import kernel
 from neck_sim.native import DISPATCH, FusedStep, NativePlant, last_warning
@@ -43,14 +44,14 @@ class PlantDivergedError(RuntimeError):
     """The simulation blew up: MuJoCo saw a singular inertia or a NaN/huge state (and may have reset it)."""
 
 
-def quantise(theta: np.ndarray, inv_res, res, out: np.ndarray) -> np.ndarray:
+def quantise(theta: np.ndarray, inv_res: float | np.ndarray, res: float | np.ndarray, out: np.ndarray) -> np.ndarray:
     """Encoder reading of motor angles theta (rad): the nearest count of resolution ``res`` (rad), into ``out``."""
     np.multiply(theta, inv_res, out=out)
     return np.multiply(np.rint(out, out=out), res, out=out)
 
 
 @kernel
-def clip_forces(requested, fmax, out) -> None:
+def clip_forces(requested: np.ndarray, fmax: np.ndarray, out: np.ndarray) -> None:
     """out (K, m) N: ``requested`` (K, m) N clipped to [0, f_max] with f_max (K, 1) N per plant, as
     ``np.minimum(np.maximum(requested, 0), fmax)`` (a -0.0 becomes 0.0); rows must be finite."""
     K, m = out.shape
@@ -62,7 +63,8 @@ def clip_forces(requested, fmax, out) -> None:
 
 
 @kernel
-def delayed_controls(k, forces, hist, R, delay, dt, period, ctrl) -> None:
+def delayed_controls(k: np.ndarray, forces: np.ndarray, hist: np.ndarray, R: np.ndarray, delay: np.ndarray,
+                     dt: float, period: float, ctrl: np.ndarray) -> None:
     """ctrl (K, n_sub, m) N: the command in force at each sub-step of the period that starts at
     sub-step k (K,), for commands ``forces`` (K, m) N issued now and actuation delays ``delay`` (K,)
     s (sub-step dt, control period ``period``, s).  The command of period p is issued at p T and
@@ -96,8 +98,16 @@ def truth_columns(n: int, m: int) -> dict[str, slice]:
     return out
 
 
-def _record(p) -> NativePlant | None:
+def _record(p: Any) -> NativePlant | None:
     return p if isinstance(p, NativePlant) else getattr(p, "native", None)
+
+
+def _library() -> ctypes.CDLL:
+    """The loaded native library (a batch on the native backend has one)."""
+    lib = DISPATCH.lib
+    if lib is None:
+        raise RuntimeError("PlantBatch: the native backend is selected but its library is not loaded")
+    return lib
 
 
 class PlantBatch:
@@ -125,8 +135,9 @@ class PlantBatch:
     """
 
     def __init__(self, plants: Iterable[Any], *, yields: bool = False) -> None:
-        records = [_record(p) for p in plants]
-        if not records or not all(isinstance(r, NativePlant) for r in records):
+        found = [_record(p) for p in plants]
+        records = [r for r in found if isinstance(r, NativePlant)]
+        if not found or len(records) != len(found):
             raise ValueError("PlantBatch: expected one or more neck_sim.plant.Plant objects")
         if len({id(r) for r in records}) != len(records):
             raise ValueError("PlantBatch: the same plant twice (each run needs its own plant)")
@@ -227,11 +238,11 @@ class PlantBatch:
     def __enter__(self) -> "PlantBatch":
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- stepping
-    def step(self, forces) -> list:
+    def step(self, forces: ArrayLike) -> list[int]:
         """One control period for the active plants (forces (K, m) N); returns the indices of the
         plants stopped in it (bad forces, diverged simulation), whose errors are in ``errors``."""
         try:
@@ -241,11 +252,11 @@ class PlantBatch:
         if f is None or f.shape != (self.K, self.m):
             raise ValueError(f"forces: expected shape ({self.K}, {self.m}) (one row of cable forces per plant), "
                              f"got {np.shape(forces)}")
-        stopped = []
+        stopped: list[int] = []
         if not math.isfinite(f.sum()):              # one reduction; the rows only when something is off
-            ok = np.isfinite(f).all(axis=1)
+            ok = np.asarray(np.isfinite(f).all(axis=1))
             for i in np.flatnonzero(~ok & (self.active > 0)):
-                self.stop(i, ValueError(f"forces: contains NaN or infinity: {f[i].tolist()}"))
+                self.stop(int(i), ValueError(f"forces: contains NaN or infinity: {f[i].tolist()}"))
                 stopped.append(int(i))
             f = np.where(ok[:, None], f, 0.0)
         clip_forces(f, self._fmax, self.forces)
@@ -253,7 +264,7 @@ class PlantBatch:
             stopped += self.stop_diverged()
         return stopped
 
-    def stop_diverged(self) -> list:
+    def stop_diverged(self) -> list[int]:
         """Stop the active plants whose ``fatal`` is set (their simulation diverged in the period
         just run); returns their indices."""
         stopped = [int(i) for i in np.flatnonzero(self.fatal * self.active)]
@@ -277,7 +288,7 @@ class PlantBatch:
         args = (i32(K), addr(plants), addr(models), addr(datas), int(active), i32(nsub), i32(m), i32(n),
                 int(self._c_ctrl if per_substep else self._c_forces), i32(per_substep), 0,
                 *(int(a) for a in self._c_out))
-        address = ctypes.cast(DISPATCH.lib.step_batch, ctypes.c_void_p).value if self._native else 0
+        address = (ctypes.cast(_library().step_batch, ctypes.c_void_p).value or 0) if self._native else 0
         delay_line = (self.k, self.hist, self._R, self._delay, self.dt, self.period, self.ctrl)
         return FusedStep(address=address, args=args, f_max=self._fmax, forces=self.forces, delay_line=delay_line,
                          delayed=per_substep, encoders=self._encoders, out=self.out)
@@ -308,7 +319,7 @@ class PlantBatch:
         if self._native:
             previous = DISPATCH.enter("native")
             try:
-                fatal = DISPATCH.lib.step_batch(*self._c_args, self._c_ctrl if per_substep else self._c_forces,
+                fatal = _library().step_batch(*self._c_args, self._c_ctrl if per_substep else self._c_forces,
                                                 int(per_substep), self._c_capture if due is not None else None,
                                                 *self._c_out)
             finally:
@@ -370,7 +381,7 @@ class PlantBatch:
             DISPATCH.leave(previous)
         for i in rows:
             self.k[i] += self.nsub
-            self._copy_outputs(i)
+            self._copy_outputs(int(i))
             self.fatal[i] = any(w.number for w in self.records[i].fatal_warnings)
         return int(self.fatal[self.active > 0].sum())
 

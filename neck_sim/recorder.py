@@ -25,10 +25,13 @@ the log topics.
 from __future__ import annotations
 
 import os
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from neck_sim.batch import truth_columns
+from neck_sim.params import NeckParams
 
 __all__ = ["Recorder", "TOPIC_ORDER"]
 
@@ -36,6 +39,12 @@ TOPIC_ORDER = ("motors", "reference", "estimate", "truth", "camera")
 """The order in which :meth:`Recorder.write` hands topics to a writer."""
 
 _TRUTH_FIELDS = ("alpha", "alpha_dot", "tension", "elongation")    # /neck/truth's fields, contract order
+
+
+class _TopicSink(Protocol):
+    """What :meth:`Recorder.write` hands topics to (a LogWriter, a LiveView)."""
+
+    def write_batch(self, name: str, t: ArrayLike, *fields: ArrayLike) -> None: ...
 
 
 class Recorder:
@@ -64,18 +73,27 @@ class Recorder:
             self._widths["alpha_hat"] = (n,)
         self.length = 0
         self._capacity = 0
-        self.t = self.theta = self.force = self.truth = self.alpha_d = self.alpha_hat = None
+        # t, theta and force always exist (empty until _grow); the others only when asked for
+        self.t, self.theta, self.force = (np.empty((runs, 0, *self._widths[name])) for name in ("t", "theta", "force"))
+        self.truth: np.ndarray | None = None
+        self.alpha_d: np.ndarray | None = None
+        self.alpha_hat: np.ndarray | None = None
         self._grow(steps)
         self.length = steps
         self.camera_t: list[list[float]] = [[] for _ in range(runs)]
         self.camera_alpha: list[list[np.ndarray]] = [[] for _ in range(runs)]
 
     # -- recording -----------------------------------------------------------------------------
-    def sample(self, k: int, t: float, theta, force=None, truth=None, *, run: int = 0, alpha_d=None,
-               alpha_hat=None) -> None:
+    def sample(self, k: int, t: float, theta: ArrayLike, force: ArrayLike | None = None, truth: object | None = None,
+               *, run: int = 0, alpha_d: ArrayLike | None = None, alpha_hat: ArrayLike | None = None) -> None:
         """Row k of run ``run``: time t (s), encoders theta (m,) rad, commanded force (m,) N, the
         truth (a :class:`neck_sim.plant.Truth`, or anything with its fields), alpha_d and
-        alpha_hat (N,) rad.  Arguments left None leave their columns as they were."""
+        alpha_hat (N,) rad.  Arguments left None leave their columns as they were; alpha_d or
+        alpha_hat given to a record not asked for them is a ValueError."""
+        if alpha_d is not None and self.alpha_d is None:
+            raise ValueError("Recorder: alpha_d given but this record has no reference (Recorder(..., reference=True))")
+        if alpha_hat is not None and self.alpha_hat is None:
+            raise ValueError("Recorder: alpha_hat given but this record has no estimate (Recorder(..., estimate=True))")
         if k >= self._capacity:
             self._grow(max(k + 1, 2 * self._capacity))
         self.length = max(self.length, k + 1)
@@ -87,18 +105,19 @@ class Recorder:
             row = self.truth[run, k]
             for name, sl in self.columns.items():
                 row[sl] = getattr(truth, name)
-        if alpha_d is not None:
+        if alpha_d is not None and self.alpha_d is not None:
             self.alpha_d[run, k] = alpha_d
-        if alpha_hat is not None:
+        if alpha_hat is not None and self.alpha_hat is not None:
             self.alpha_hat[run, k] = alpha_hat
 
-    def append(self, t: float, theta, force=None, truth=None, *, alpha_d=None, alpha_hat=None) -> int:
+    def append(self, t: float, theta: ArrayLike, force: ArrayLike | None = None, truth: object | None = None, *,
+               alpha_d: ArrayLike | None = None, alpha_hat: ArrayLike | None = None) -> int:
         """:meth:`sample` at the next row (``length``) of run 0; returns that row's index."""
         k = self.length
         self.sample(k, t, theta, force, truth, alpha_d=alpha_d, alpha_hat=alpha_hat)
         return k
 
-    def frame(self, frame, *, run: int = 0, offset: float = 0.0) -> None:
+    def frame(self, frame: tuple[float, ArrayLike] | None, *, run: int = 0, offset: float = 0.0) -> None:
         """A camera frame (t s, alpha (N,) rad), stamped ``offset + t``; None (no frame) is ignored."""
         if frame is not None:
             self.camera_t[run].append(offset + frame[0])
@@ -120,13 +139,14 @@ class Recorder:
         return (np.asarray(self.camera_t[run], dtype=float).reshape(-1),
                 np.asarray(self.camera_alpha[run], dtype=float).reshape(-1, self.n_joints))
 
-    def topics(self, run: int = 0, *, rows: slice | None = None, frames: slice | None = None) -> dict:
+    def topics(self, run: int = 0, *, rows: slice | None = None,
+               frames: slice | None = None) -> dict[str, tuple[np.ndarray, ...]]:
         """Contract topic name -> (t, *fields) arrays of run ``run`` in contract field order, for
         the topics this record holds (order :data:`TOPIC_ORDER`); ``rows`` (default every row)
         and ``frames`` (default every camera frame) select a part."""
         rows = slice(0, self.length) if rows is None else rows
         t = self.t[run, rows]
-        out = {"motors": (t, self.theta[run, rows], self.force[run, rows])}
+        out: dict[str, tuple[np.ndarray, ...]] = {"motors": (t, self.theta[run, rows], self.force[run, rows])}
         if self.alpha_d is not None:
             out["reference"] = (t, self.alpha_d[run, rows])
         if self.alpha_hat is not None:
@@ -140,13 +160,14 @@ class Recorder:
         return out
 
     # -- writing -------------------------------------------------------------------------------
-    def write(self, sink, run: int = 0, *, rows: slice | None = None, frames: slice | None = None) -> None:
+    def write(self, sink: _TopicSink, run: int = 0, *, rows: slice | None = None, frames: slice | None = None) -> None:
         """Hand run ``run``'s topics (:meth:`topics`) to ``sink``'s ``write_batch`` (a
         :class:`neck_sim.logs.LogWriter` or a :class:`neck_sim.live.LiveView`)."""
         for name, arrays in self.topics(run, rows=rows, frames=frames).items():
             sink.write_batch(name, *arrays)
 
-    def write_log(self, path, params, *, run: int = 0, mjcf_xml: str | None = None,
+    def write_log(self, path: str | os.PathLike, params: NeckParams | None, *, run: int = 0,
+                  mjcf_xml: str | None = None,
                   run_info: dict | None = None) -> str:
         """Write run ``run`` as the contract log ``path`` (atomic: nothing is left under ``path``
         if writing fails); ``params`` the nominal constants of the ``neck`` record, ``run_info``

@@ -15,6 +15,7 @@ import contextlib
 import math
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,17 +25,21 @@ from neck_sim.params import NeckParams, ParameterError
 from neck_sim.plant_spec import PlantSpec
 from neck_sim.recorder import Recorder
 
+if TYPE_CHECKING:                     # the plant module loads MuJoCo: imported when a plant is built
+    from neck_sim.plant import Plant
+
 __all__ = ["plant_run_info", "plant_from_log", "plant_spec_from_log", "replay", "ReplayResult"]
 
 
-def plant_run_info(plant) -> dict:
+def plant_run_info(plant: Plant) -> dict:
     """Run metadata that lets :func:`replay` rebuild ``plant`` exactly (pass it to LogWriter's
     ``run_info``): :meth:`PlantSpec.to_record` of the plant's spec."""
     return PlantSpec.of(plant).to_record()
 
 
 def plant_from_log(log: Log, *, params: NeckParams | None = None, effects: Effects | None = None,
-                   seed: int | None = None, changes: dict | None = None, backend: str | None = None):
+                   seed: int | None = None, changes: dict | None = None,
+                   backend: str | None = None) -> tuple[Plant, list[str]]:
     """The plant that produced ``log`` (from its ``run`` record), optionally changed.
 
     ``params``/``effects``/``seed`` replace the recorded ones; ``changes`` are dotted parameter
@@ -138,6 +143,8 @@ def replay(log: Log | str | os.PathLike, *, params: NeckParams | None = None, ef
     plant, notes = plant_from_log(log, params=params, effects=effects, seed=seed, changes=changes, backend=backend)
     notes += list(log.warnings)
     m = log.motors
+    if m is None:
+        raise ValueError(f"{log.path}: no /neck/motors: nothing to replay")
     if len(m.t) < 2:
         raise ValueError(f"{log.path}: /neck/motors has {len(m.t)} sample(s): nothing to replay")
     period = plant.period

@@ -25,16 +25,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 FACES = ("neck_sim", "controllers", "identification")
 EXPORTS = [(face, name) for face in FACES for name in importlib.import_module(face).__all__]
 
-# Defining modules not (yet) held to the typing test, and why.
-_DIAGNOSIS = "the diagnosis package is rewritten on another branch today; it joins PUBLIC_MODULES after"
-_MYPY = "mypy reports errors in its body (Optional arrays set in __init__): its signatures are annotated"
-UNTYPED_SOURCES = {
-    "identification.diagnosis.pipeline": _DIAGNOSIS, "identification.diagnosis.result": _DIAGNOSIS,
-    "identification.diagnosis.settings": _DIAGNOSIS,
-    "neck_sim.batch": _MYPY, "neck_sim.recorder": _MYPY, "neck_sim.replay": _MYPY, "controllers.closed_loop": _MYPY,
-}
-
-
 def usage_example(doc):
     """The indented block after ``Usage::`` in a docstring, dedented."""
     lines = doc.split("Usage::", 1)[1].splitlines()[1:]
@@ -108,9 +98,6 @@ def test_export_is_annotated(face, name):
         missing = [f for f in value._fields if f not in value.__annotations__]     # a named tuple's fields
         assert not missing, f"{face}.{name}: unannotated fields {missing}"
         return
-    if defining_module(face, name) in UNTYPED_SOURCES and defining_module(face, name).startswith(
-            "identification.diagnosis"):
-        return              # signatures in files another branch is rewriting (UNTYPED_SOURCES)
     if isinstance(value, type):
         own = [vars(value)[m] for m in ("__init__", "__new__") if m in vars(value)]
         if not own or issubclass(value, (BaseException, enum.Enum)) and "__init__" not in vars(value):
@@ -124,7 +111,7 @@ def test_export_is_annotated(face, name):
 @pytest.mark.parametrize("face, name", EXPORTS)
 def test_export_comes_from_a_typed_module(face, name):
     module = defining_module(face, name)
-    assert module in PUBLIC_MODULES or module in UNTYPED_SOURCES, \
+    assert module in PUBLIC_MODULES, \
         f"{face}.{name} is defined in {module}, which tests/test_typing.py does not check"
 
 

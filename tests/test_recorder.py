@@ -154,6 +154,14 @@ def test_an_appending_recorder_grows_and_keeps_its_rows():
     assert np.isnan(rec.topics()["truth"][1]).all()            # never sampled: NaN, not zeros
 
 
+@pytest.mark.parametrize("given, message", [("alpha_d", "no reference"), ("alpha_hat", "no estimate")])
+def test_a_reference_or_estimate_for_a_record_without_it_is_refused(given, message):
+    rec = Recorder(3, 4, 2)
+    with pytest.raises(ValueError, match=message):
+        rec.sample(0, 0.0, np.zeros(4), **{given: np.zeros(3)})
+    assert np.isnan(rec.t).all() and set(rec.topics()) == {"motors", "truth", "camera"}   # nothing recorded
+
+
 @pytest.mark.parametrize("spec", [PlantSpec(default_params(3), Effects(payload=Payload(mass=0.04)), seed=7,
                                             timestep=2.5e-4),
                                   PlantSpec(default_params(3), seed=3, rigid_cables=True),

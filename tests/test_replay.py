@@ -77,6 +77,13 @@ def test_replay_rejects_motor_samples_off_the_control_period(tmp_path):
         replay(tmp_path / "a.mcap")
 
 
+def test_replay_of_a_log_without_motors_says_so(plant_log):
+    import dataclasses
+    log = dataclasses.replace(read_log(plant_log), motors=None)     # a Log built in code, not read
+    with pytest.raises(ValueError, match="no /neck/motors"):
+        replay(log)
+
+
 def test_replay_command(plant_log, tmp_path, capsys):
     out = tmp_path / "r.mcap"
     assert main(["replay", str(plant_log), "-o", str(out), "--no-progress", "--json", str(tmp_path / "r.json"),

@@ -40,6 +40,9 @@ PUBLIC_MODULES = [
     "neck_sim.effects.base", "neck_sim.logs", "neck_sim.logs.contract", "neck_sim.logs.reader",
     "neck_sim.logs.writer", "neck_sim.trajectory",
     "controllers.computed_torque", "controllers.trajectories", "controllers.run_result", "controllers.parallel",
+    "neck_sim.batch", "neck_sim.recorder", "neck_sim.replay", "controllers.closed_loop", "controllers.experiments",
+    "identification.diagnosis.pipeline", "identification.diagnosis.result", "identification.diagnosis.settings",
+    "identification.diagnosis.parameters",
 ]
 
 

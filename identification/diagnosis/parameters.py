@@ -66,7 +66,7 @@ def cables_of(fit: Fit, term: Term) -> list[int] | None:
     return _located(fit, term, "cable")
 
 
-def shape_located(cables: list[int] | None, parameters: dict, term: Term) -> list[int] | None:
+def shape_located(cables: list[int] | None, parameters: dict[str, Parameter], term: Term) -> list[int] | None:
     """The cables of a per-cable shape (pretension) whose fitted value stands out: >= 2 profile
     sigmas and >= 25 % of the largest; the others were searched and kept but are not told apart
     from zero.  Other effects: ``cables`` unchanged."""
@@ -74,13 +74,14 @@ def shape_located(cables: list[int] | None, parameters: dict, term: Term) -> lis
     if not keys or cables is None:
         return cables
     vals = {cable: parameters.get(f"{sh.name}({cable})") for sh, cable in keys.values()}
-    if any(p is None or p.sigma is None for p in vals.values()):
+    known = {c: (p.value, p.sigma) for c, p in vals.items() if p is not None and p.sigma is not None}
+    if len(known) != len(vals):                  # a value or its sigma missing: nothing told apart
         return cables
-    order = sorted(vals)
-    v = np.abs([vals[c].value for c in order])
+    order = sorted(known)
+    v = np.abs([known[c][0] for c in order])
     # the profile sigma of a searched offset is wide (0.3-1 mm on a 12 s log): 2 sigma, and at
     # least a quarter of the largest offset
-    keep = (v >= 2 * np.array([vals[c].sigma for c in order])) & (v >= 0.25 * v.max(initial=0.0))
+    keep = (v >= 2 * np.array([known[c][1] for c in order])) & (v >= 0.25 * v.max(initial=0.0))
     return [c for c, k in zip(order, keep) if k] or cables
 
 
@@ -94,6 +95,8 @@ def profile_sigma(ctx: StepContext, term: Term, key: str, h: float, fit_score: f
     """Standard deviation of a searched shape parameter from the curvature of the training score:
     S(v) ~ S* (1 + (v - v*)^2 / (n_eff sigma^2)), i.e. a unit change of chi^2."""
     v0 = term.get(key)
+    if v0 is None:
+        raise ValueError(f"profile_sigma: effect {term.name} has no shape parameter {key!r}")
     vals = []
     for v in (v0 - h, v0 + h):
         shape = tuple((k, (v if k == key else x)) for k, x in term.shape)
@@ -112,7 +115,7 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
     """Fitted parameters of the candidate's term by name; shape parameters from the grid search
     have sigma None, except those with a ``Shape.profile_step`` (the delay, the rest elongations:
     profile of the training score)."""
-    fit, term = cand.fit, cand.term
+    fit, term = chosen_fit(cand), cand.term
     sym = {col.symbol for col in term.identification.columns}
     out = {}
     for n, u, v, s in zip(fit.names, fit.units, fit.value, fit.sigma):
@@ -128,6 +131,13 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
         else:
             out[name] = Parameter(float(v), None, sh.unit if sh else "", "shape parameter, grid search")
     return out
+
+
+def chosen_fit(cand: CandidateScore) -> Fit:
+    """The fit of a candidate that was fitted (a chosen one always is)."""
+    if cand.fit is None:
+        raise ValueError(f"candidate {cand.term.name}: no fitted model (its fit failed)")
+    return cand.fit
 
 
 def all_parameters(fit: Fit) -> dict[str, Parameter]:

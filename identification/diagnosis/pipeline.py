@@ -2,21 +2,24 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import time
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from identification.diagnosis.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext, fit_baseline
-from identification.diagnosis.gains import alpha_hat_errors, residual_rms
-from identification.diagnosis.parameters import all_parameters, cables_of, joints_of, shape_located, term_parameters
+from identification.diagnosis.gains import AlphaHatErrors, alpha_hat_errors, residual_rms
+from identification.diagnosis.parameters import (all_parameters, cables_of, chosen_fit, joints_of, shape_located,
+                                                  term_parameters)
 from identification.diagnosis.resimulation import resimulate
 from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary
 from identification.diagnosis.search import retune_shapes
-from identification.diagnosis.selection import run_step
-from identification.diagnosis.settings import DiagnosisSettings, parse_model
+from identification.diagnosis.selection import Step, run_step
+from identification.diagnosis.settings import DiagnosisSettings, ModelLike, parse_model
 from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import leftover_structure
 from identification.diagnosis.support import blocked_candidates, excitation_summary, log_gaps, short_log_gap
@@ -24,30 +27,32 @@ from identification.preprocessing import Measurements
 from neck_sim.analytic import UnreachableError
 from neck_sim.params import NeckParams
 
+if TYPE_CHECKING:
+    from neck_sim.logs import Log
 
-def single_thread():
+
+def single_thread() -> contextlib.AbstractContextManager[Any]:
     """BLAS limited to one thread: the fits are many small least-squares problems, for which
     OpenBLAS threads only cost (10x slower on a loaded 2-core machine)."""
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:              # pragma: no cover - threadpoolctl is a dependency
-        import contextlib
         return contextlib.nullcontext()
     return threadpool_limits(1)
 
 
-def diagnose(data: MeasuredData, model=None, settings: DiagnosisSettings | None = None, *,
+def diagnose(data: MeasuredData, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,
              progress: bool = False, source: str = "") -> Diagnosis:
     """Diagnose prepared measured data from the baseline ``model`` (default: the paper's)."""
     with single_thread():
         return _diagnose(data, model, settings, progress=progress, source=source)
 
 
-def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, progress: bool,
+def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings | None, *, progress: bool,
               source: str) -> Diagnosis:
     s = settings or DiagnosisSettings()
-    model = parse_model(model)
-    timings = {}
+    spec = parse_model(model)
+    timings: dict[str, float] = {}
     notes: list[str] = []
     t0 = time.perf_counter()
     summary = excitation_summary(data)
@@ -57,31 +62,33 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
     if fatal:                  # the log cannot support a verdict: the baseline only, no candidate
         s = dataclasses.replace(s, candidates=(), max_steps=1)
         try:
-            fit_baseline(data, model, split_samples(data.t, data.activity, s), s, None)
+            fit_baseline(data, spec, split_samples(data.t, data.activity, s), s, None)
         except ValueError as exc:    # too little for even the baseline: the gaps say why, no model
-            return Diagnosis.without_fit(source, model, s, gaps, summary, notes=(f"baseline not fitted: {exc}",),
+            return Diagnosis.without_fit(source, spec, s, gaps, summary, notes=(f"baseline not fitted: {exc}",),
                                          data=data)
     elif blocked:
         s = dataclasses.replace(s, candidates=tuple(c for c in s.candidates if c not in blocked))
         notes += [f"{name} not tried: {why}" for name, why in blocked.items()]
     split = split_samples(data.t, data.activity, s)
-    steps = []
-    current, state = model, None
+    steps: list[Step] = []
+    current, state = spec, None
     for i in range(max(s.max_steps, 1)):
         if i > 0:
             # shapes searched at an earlier step were chosen without the effects found since
-            current = retune_shapes(data, current, split, s, state, {st.chosen.term.name for st in steps})
+            current = retune_shapes(data, current, split, s, state,
+                                   {st.chosen.term.name for st in steps if st.chosen is not None})
         step = run_step(data, current, split, s, state, progress=progress, desc=f"step {i + 1}: candidates")
         steps.append(step)
         if step.chosen is None:
             break
-        current, state = step.chosen.fit.model, step.chosen.fit.state
+        fit = chosen_fit(step.chosen)
+        current, state = fit.model, fit.state
     timings["search"] = time.perf_counter() - t0
     # models compared: each step's baseline and the last extension (if the last step found one)
     evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
     fits = [e.fit for e in evaluated]
     t1 = time.perf_counter()
-    alpha = [None] * len(fits)
+    alpha: Sequence[AlphaHatErrors | None] = [None] * len(fits)
     if s.alpha_hat and data.C < data.n:
         notes.append(f"alpha_hat not evaluated: eq (35) needs at least as many cables as joints "
                      f"(this neck: {data.C} cables, {data.n} joints)")
@@ -115,14 +122,15 @@ def _diagnose(data: MeasuredData, model, settings: DiagnosisSettings | None, *, 
         ctx = StepContext(data, split, s, st.base, st.scales)
         params = term_parameters(ctx, c)
         findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
-                                shape_located(cables_of(c.fit, c.term), params, c.term), joints_of(c.fit, c.term),
-                                params, c,
-                                Gain(summaries[i], summaries[i + 1]), leftover.found))
-    return Diagnosis(source, model, split, tuple(steps), tuple(findings), tuple(summaries),
+                                shape_located(cables_of(chosen_fit(c), c.term), params, c.term),
+                                joints_of(chosen_fit(c), c.term), params, c,
+                                Gain(summaries[i], summaries[i + 1]), () if leftover is None else leftover.found))
+    return Diagnosis(source, spec, split, tuple(steps), tuple(findings), tuple(summaries),
                      ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes), gaps, summary)
 
 
-def diagnose_log(log, model=None, settings: DiagnosisSettings | None = None, *, params: NeckParams | None = None,
+def diagnose_log(log: Log | str | os.PathLike, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,
+                 params: NeckParams | None = None,
                  progress: bool = False) -> Diagnosis:
     """:func:`diagnose` on a :class:`neck_sim.logs.Log` or a path: measured topics and the ``neck``
     record only (``/neck/truth``, ``/neck/reference``, ``/neck/estimate`` and the ``run`` record are

@@ -3,6 +3,7 @@ extended model and the method text, each a frozen dataclass whose ``to_dict()`` 
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis.structure import Leftover
 from identification.diagnosis.support import ExcitationSummary
-from neck_sim.effects import INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED
+from neck_sim.effects import INSUFFICIENT_EXCITATION, NONE, UNEXPLAINED, Effects
 from neck_sim.atomic import atomic_write_json, jsonable
 from neck_sim.params import NeckParams, to_dict
 
@@ -111,7 +112,7 @@ class ExtendedModel:
 
     model: ModelSpec
     params: NeckParams
-    effects: object
+    effects: Effects
     rigid_cables: bool
     parameters: dict
 
@@ -179,7 +180,8 @@ class Diagnosis:
 
     @classmethod
     def without_fit(cls, source: str, model: ModelSpec, settings: DiagnosisSettings, gaps: tuple,
-                    excitation: ExcitationSummary | None, notes: tuple = (), data=None) -> "Diagnosis":
+                    excitation: ExcitationSummary | None, notes: tuple = (),
+                    data: MeasuredData | None = None) -> "Diagnosis":
         """The diagnosis of a log that cannot support even the baseline's fit (its fatal ``gaps``
         say why): verdict ``insufficient_excitation``, no split, steps, models or findings."""
         return cls(source, model, None, (), (), (), None, {}, settings, data, None, tuple(notes), tuple(gaps),
@@ -191,7 +193,7 @@ class Diagnosis:
         return any(g.fatal for g in self.gaps)
 
     @property
-    def verdict(self):
+    def verdict(self) -> str | list[str]:
         """``insufficient_excitation`` when the log cannot support a verdict; else the names the
         forward steps found (one name, or a list: several findings, or look-alikes the data
         cannot tell apart), "none" when nothing was found, with ``UNEXPLAINED`` when the final
@@ -255,10 +257,10 @@ class Diagnosis:
                          "split": self.split and self.split.to_dict(), "source": self.source, "timings_s": self.timings,
                          "method": method_text(self.settings), "settings": self.settings.to_dict()})
 
-    def write_json(self, path) -> None:
+    def write_json(self, path: str | os.PathLike) -> None:
         atomic_write_json(path, self.to_dict())
 
-    def write_model(self, path) -> None:
+    def write_model(self, path: str | os.PathLike) -> None:
         """The final model (terms, plant parameters, effects) as JSON; ``--model`` reads it back.
         ValueError when there is none (the log could not support the baseline's fit)."""
         if self.extended is None:

@@ -22,7 +22,12 @@ MODEL_SHORTCUTS = {
 }
 
 
-def parse_model(spec) -> ModelSpec:
+#: What names a baseline model: a :class:`ModelSpec`, a shortcut or effect list, a model JSON path,
+#: or None (the paper's).
+ModelLike = ModelSpec | str | os.PathLike | None
+
+
+def parse_model(spec: ModelLike) -> ModelSpec:
     """A model from a shortcut (:data:`MODEL_SHORTCUTS`), a comma-separated list of effect names,
     a :class:`ModelSpec`, or a model JSON file written by a previous diagnosis (``model`` list)."""
     if isinstance(spec, ModelSpec):
