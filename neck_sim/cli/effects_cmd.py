@@ -22,7 +22,8 @@ def describe(cls: type[Effect]) -> tuple[str, str, str, str]:
 
     fit = columns.get(cls.name) if cls.name in columns.names() else columns.EffectColumns
     params = ", ".join(f"{c.symbol} [{c.unit}]" + ("" if c.per == "one" else f" per {c.per}") for c in fit.columns)
-    shapes = ", ".join(f"{s.name} [{s.unit}]" + (f" {s.default:g} in {list(s.grid)}" if s.grid else
+    shapes = ", ".join(f"{s.name} [{s.unit}]" + (f" per cable in {list(s.grid)}" if s.per_cable and s.grid else
+                                                 f" {s.default:g} in {list(s.grid)}" if s.grid else
                                                  f" per cable in {list(s.bounds)}" if s.per_cable else "")
                        for s in fit.shapes)
     plant = cls.kind + (" (paper's model)" if cls.baseline else "")
