@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import json
 
+import os
+
 import numpy as np
 import pytest
 
@@ -148,6 +150,12 @@ def blind10(tmp_path_factory):
     return get
 
 
+# The whole blind grid of this neck (every case, seeds 1-3) is benchmarks/bench_any_neck.py
+# --detection; the suite keeps the cases the 3-joint tests do not already cover in kind (the
+# hinge's column, the payload) and runs the other two only when asked, to stay in its time budget.
+full_grid = pytest.mark.skipif(os.environ.get("NECK_SIM_FULL_GRID") != "1",
+                               reason="NECK_SIM_FULL_GRID=1 runs it (bench_any_neck.py --detection runs seeds 1-3)")
+
 def _own_candidate(diag, spec):
     """The hidden effect's own candidate at step 1, whether or not it was named."""
     return next(c for c in diag.steps[0].candidates if c.term.name == spec.expect)
@@ -168,6 +176,7 @@ def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge
     np.testing.assert_allclose(fit.value[top], spec.magnitude, rtol=0.25)
 
 
+@full_grid
 def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
     """A FIFO of commanded forces (``open_world.generator``), diagnosed blind: named, its delay
     within the 3-joint tests' 10 %."""
@@ -176,6 +185,7 @@ def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
     np.testing.assert_allclose(diag.findings[0].parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
 
 
+@full_grid
 def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(blind10):
     """A tanh Coulomb force on cable 1's commanded force (seed 1; the baseline without eq 36's
     friction, as in the 3-joint tests): ``dry_friction`` named first, on cable 1, within 10 %
