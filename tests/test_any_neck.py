@@ -18,7 +18,6 @@ see), is within 1 %, so that is asserted at 2 %.
 from __future__ import annotations
 
 import json
-
 import os
 
 import numpy as np
