@@ -27,6 +27,23 @@ MODEL_SHORTCUTS = {
 ModelLike = ModelSpec | str | os.PathLike | None
 
 
+
+def read_model_file(path: str | os.PathLike, keys: tuple[str, ...], what: str) -> dict:
+    """The JSON object of a model file written by ``neck-sim diagnose --extended`` that holds
+    ``keys`` (``what`` says them in the error); ValueError in one line naming what is wrong."""
+    try:
+        with open(path, "rb") as fh:
+            data = json.loads(fh.read())
+    except OSError as exc:
+        raise ValueError(f"--model {path}: cannot read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--model {path}: not JSON ({exc})") from None
+    if not isinstance(data, dict) or not set(keys) <= set(data):
+        raise ValueError(f"--model {path}: expected a model file written by 'neck-sim diagnose --extended' "
+                         f"(with {what})")
+    return data
+
+
 def parse_model(spec: ModelLike) -> ModelSpec:
     """A model from a shortcut (:data:`MODEL_SHORTCUTS`), a comma-separated list of effect names,
     a :class:`ModelSpec`, or a model JSON file written by a previous diagnosis (``model`` list)."""
@@ -36,17 +53,7 @@ def parse_model(spec: ModelLike) -> ModelSpec:
         return ModelSpec.of(*paper_model())
     s = str(spec).strip()
     if s.endswith(".json") or os.path.sep in s:
-        try:
-            with open(s, "rb") as fh:
-                data = json.loads(fh.read())
-        except OSError as exc:
-            raise ValueError(f"--model {s}: cannot read ({exc.strerror})") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--model {s}: not JSON ({exc})") from None
-        if not isinstance(data, dict) or "model" not in data:
-            raise ValueError(f"--model {s}: expected a model file written by 'neck-sim diagnose --extended' "
-                             f"(with a 'model' list of terms)")
-        return ModelSpec.from_list(data["model"])
+        return ModelSpec.from_list(read_model_file(s, ("model",), "a 'model' list of terms")["model"])
     if s in MODEL_SHORTCUTS:
         return ModelSpec.of(*MODEL_SHORTCUTS[s])
     names = [x.strip() for x in s.split(",") if x.strip() and x.strip() != "none"]

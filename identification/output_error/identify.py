@@ -10,7 +10,6 @@ extended model's effect magnitudes from its file.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,19 +35,11 @@ class ExtendedPlant:
 
 def load_extended_model(path) -> ExtendedPlant:
     """Read a ``diagnose --extended`` JSON file; ValueError in one line naming what is wrong."""
+    from identification.diagnosis.settings import read_model_file
     from neck_sim.effects import Effects
     from neck_sim.params import from_dict
 
-    try:
-        with open(path, "rb") as fh:
-            data = json.loads(fh.read())
-    except OSError as exc:
-        raise ValueError(f"--model {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--model {path}: not JSON ({exc})") from None
-    if not isinstance(data, dict) or not {"params", "effects"} <= set(data):
-        raise ValueError(f"--model {path}: expected a model file written by 'neck-sim diagnose --extended' "
-                         f"(with 'params' and 'effects')")
+    data = read_model_file(path, ("params", "effects"), "'params' and 'effects'")
     if data.get("rigid_cables"):
         raise ValueError(f"--model {path}: a rigid-cable model; output-error fits the elastic cables of eq (54)")
     try:
