@@ -25,8 +25,9 @@ MuJoCo.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from neck_sim.lazy import lazy_attributes
 
 if TYPE_CHECKING:
     from controllers.closed_loop import run_closed_loop, run_lockstep
@@ -57,14 +58,4 @@ _SOURCES: dict[str, str] = {
     "UnderactuatedController": "controllers.underactuated",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _SOURCES:
-        raise AttributeError(f"module 'controllers' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_SOURCES[name]), name)
-    globals()[name] = value         # the next access skips this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_attributes(__name__, _SOURCES, __all__)

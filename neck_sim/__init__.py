@@ -30,8 +30,9 @@ do not load MuJoCo, numba or SciPy.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from neck_sim.lazy import lazy_attributes
 
 if TYPE_CHECKING:
     from neck_sim import analytic, effects
@@ -69,16 +70,4 @@ _SOURCES: dict[str, tuple[str, str | None]] = {
     "effects": ("neck_sim.effects", None), "analytic": ("neck_sim.analytic", None),
 }
 
-
-def __getattr__(name: str) -> Any:
-    source = _SOURCES.get(name)
-    if source is None:
-        raise AttributeError(f"module 'neck_sim' has no attribute {name!r}")
-    module = importlib.import_module(source[0])
-    value = module if source[1] is None else getattr(module, source[1])
-    globals()[name] = value         # the next access skips this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_attributes(__name__, _SOURCES, __all__)

@@ -36,7 +36,7 @@ PUBLIC_MODULES = [
     "identification.uncertainty",
     # the package faces and the modules they export from
     "neck_sim", "controllers", "identification",
-    "neck_sim.validation", "neck_sim.params", "neck_sim.plant", "neck_sim.plant_spec", "neck_sim.effects",
+    "neck_sim.validation", "neck_sim.lazy", "neck_sim.params", "neck_sim.plant", "neck_sim.plant_spec", "neck_sim.effects",
     "neck_sim.effects.base", "neck_sim.logs", "neck_sim.logs.contract", "neck_sim.logs.reader",
     "neck_sim.logs.writer", "neck_sim.trajectory",
     "controllers.computed_torque", "controllers.trajectories", "controllers.run_result", "controllers.parallel",

@@ -28,8 +28,9 @@ Usage::
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from neck_sim.lazy import lazy_attributes
 
 from neck_sim.native.source import MAX_CABLES, SOURCE_PATH, PlantStruct, source, struct_fields
 
@@ -57,17 +58,11 @@ _LAZY = {"cache_dir": "neck_sim.cache",
          **dict.fromkeys(("NativePlant", "Outputs", "StepState"), "neck_sim.native.record")}
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'neck_sim.native' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
 
 __all__ = ["SOURCE_PATH", "source", "MAX_CABLES", "PlantStruct", "struct_fields", "build", "NativeBuildError",
            "mujoco_include_dir", "mujoco_library", "link_flags", "compiler", "cache_dir",
            "FATAL_WARNINGS", "last_warning", "log_warning", "route_mujoco_warnings",
            "BACKENDS", "DISPATCH", "Dispatch", "get_backend", "native_available", "set_backend",
            "NativePlant", "Outputs", "StepState", "FusedStep", "call_c"]
+
+__getattr__, __dir__ = lazy_attributes(__name__, _LAZY, __all__)
