@@ -34,11 +34,7 @@ class ActuationDelayColumns(EffectColumns):
     @classmethod
     def motor_delays(cls, shape: dict, n_cables: int) -> np.ndarray:
         """(n_cables,) s from the shape keys ``motor_delay_<i>`` (1-based)."""
-        out = np.zeros(n_cables)
-        for key, v in shape.items():
-            if key.startswith("motor_delay_"):
-                out[int(key[len("motor_delay_"):]) - 1] = v
-        return out
+        return cls.shapes[1].per_cable_values(shape, n_cables)
 
     @classmethod
     def fit_motor_delays(cls, shape: dict, n_cables: int) -> np.ndarray:

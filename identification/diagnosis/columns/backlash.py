@@ -46,11 +46,7 @@ class BacklashColumns(EffectColumns):
     @classmethod
     def bands(cls, shape: dict, n_cables: int) -> np.ndarray:
         """The band (n_cables,) m from the shape keys ``band_<i>`` (1-based)."""
-        out = np.zeros(n_cables)
-        for key, v in shape.items():
-            if key.startswith("band_"):
-                out[int(key[5:]) - 1] = v
-        return out
+        return cls.shapes[0].per_cable_values(shape, n_cables)
 
     @classmethod
     def fit_cable_offset(cls, data: ColumnData, cable: int, value: float) -> np.ndarray:

@@ -147,6 +147,15 @@ class Shape:
         if self.search not in ("cable_law", "fit"):
             raise ValueError(f"Shape.search: 'cable_law' or 'fit', got {self.search!r}")
 
+    def per_cable_values(self, shape: dict, n_cables: int) -> np.ndarray:
+        """This per-cable shape's values (n_cables,) from a shape dict's keys ``<name>_<i>``
+        (1-based); 0 for a cable the dict does not name."""
+        prefix, out = f"{self.name}_", np.zeros(n_cables)
+        for key, v in shape.items():
+            if key.startswith(prefix):
+                out[int(key[len(prefix):]) - 1] = v
+        return out
+
 
 class Design(NamedTuple):
     """Regressor columns of one effect for one fit (S samples, N joints, C cables, p columns):

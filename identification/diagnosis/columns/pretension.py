@@ -28,11 +28,7 @@ class PretensionColumns(EffectColumns):
     @classmethod
     def fit_elongation_offset(cls, shape: dict, n_cables: int) -> np.ndarray:
         """x_0 (n_cables,) m from the shape keys ``x0_<i>`` (1-based)."""
-        out = np.zeros(n_cables)
-        for key, v in shape.items():
-            if key.startswith("x0_"):
-                out[int(key[3:]) - 1] = v
-        return out
+        return cls.shapes[0].per_cable_values(shape, n_cables)
 
     @classmethod
     def to_plant(cls, params, values, shape):
