@@ -17,12 +17,12 @@ is not recorded: the native and Python backends give the same run (``tests/test_
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping
 
 from neck_sim.effects import Effects
+from neck_sim.logs.contract import record_value
 from neck_sim.params import NeckParams, default_params, from_dict, to_dict
 
 if TYPE_CHECKING:
@@ -129,7 +129,7 @@ class PlantSpec:
         the wrong kind raises ValueError naming the key."""
         if not isinstance(record, Mapping):
             raise ValueError(f"run record: expected a mapping, got {type(record).__name__}")
-        value = {key: _decoded(record.get(key)) for key in RECORD_KEYS}
+        value = {key: record_value(record.get(key)) for key in RECORD_KEYS}
         notes = {}
         params = value["plant_params"]
         if params is None:
@@ -162,13 +162,3 @@ class PlantSpec:
         return cls(params, effects, seed=seed, timestep=timestep, rigid_cables=bool(value["rigid_cables"] or False),
                    integrator=value["integrator"]), notes
 
-
-def _decoded(raw):
-    """A record value as :meth:`neck_sim.logs.Log.run_value` reads it: JSON text decoded (the raw
-    string when it is not JSON); values that are not text pass as they are."""
-    if not isinstance(raw, str):
-        return raw
-    try:
-        return json.loads(raw)
-    except json.JSONDecodeError:
-        return raw

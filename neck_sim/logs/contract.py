@@ -32,7 +32,8 @@ from neck_sim.params import NeckParams, ParameterError, default_params, to_dict
 from neck_sim.routing import Routing, paper_routing
 
 __all__ = ["LogError", "TopicSpec", "TOPICS", "TOPIC_BY_NAME", "NECK_RECORD", "RUN_RECORD",
-           "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic", "check_plausible"]
+           "topic_schema", "neck_metadata", "params_from_metadata", "resolve_topic", "check_plausible",
+           "record_value"]
 
 
 class LogError(ValueError):
@@ -41,6 +42,17 @@ class LogError(ValueError):
 
 NECK_RECORD = "neck"
 RUN_RECORD = "run"
+
+
+def record_value(raw: Any) -> Any:
+    """A ``run`` record value as the log holds it: JSON text decoded, the raw string when it is not
+    JSON, anything that is not text (None for an absent key) as it is."""
+    if not isinstance(raw, str):
+        return raw
+    try:
+        return json.loads(raw)
+    except json.JSONDecodeError:
+        return raw
 
 # Per-field length: "joints" = N, "cables" = m (the routing's cable count, N + 1 by default).
 _JOINTS, _CABLES = "joints", "cables"

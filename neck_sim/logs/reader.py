@@ -28,7 +28,7 @@ from typing import Any, Iterable
 import numpy as np
 from mcap.reader import SeekingReader
 
-from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TOPICS, LogError,
+from neck_sim.logs.contract import (MIN_CAMERA_FRAMES, record_value, NECK_RECORD, RUN_RECORD, TOPIC_BY_NAME, TOPICS, LogError,
                                     TopicSpec, check_plausible, params_from_metadata, resolve_topic)
 from neck_sim.logs.payloads import READ_ERRORS, Payloads, collect_indexed, collect_linear
 from neck_sim.params import NeckParams
@@ -117,13 +117,7 @@ class Log:
 
     def run_value(self, key: str) -> Any:
         """A ``run`` record value decoded from JSON (the raw string when it is not JSON; None if absent)."""
-        raw = self.run_info.get(key)
-        if raw is None:
-            return None
-        try:
-            return json.loads(raw)
-        except json.JSONDecodeError:
-            return raw
+        return record_value(self.run_info.get(key))
 
 
 def _to_ns(value: float | None, name: str) -> int | None:
