@@ -104,7 +104,7 @@ class NeckPhysics(dm_mujoco.Physics):
 
     def set_control(self, control) -> None:
         """Commanded cable forces (N+1,) N for the next control period (clipped to [0, f_max])."""
-        self._forces = np.array(self._plant._check_forces(control), dtype=float)
+        self._forces = np.array(self._plant.checked_forces(control), dtype=float)
 
     def step(self, nstep: int = 1) -> None:
         n = self._plant.substeps

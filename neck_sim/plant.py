@@ -306,8 +306,9 @@ class Plant:
         self._lead = np.zeros(self._n1)                   # encoders zeroed in the middle of the band
         self._drum = self._out_theta.copy()
 
-    def _check_forces(self, forces) -> list:
-        """Commanded forces as a list of floats clipped to [0, f_max]; bad input raises ValueError."""
+    def checked_forces(self, forces: npt.ArrayLike) -> list:
+        """Commanded forces (m,) N as a list of floats clipped to [0, f_max] N, as :meth:`step` applies
+        them; wrong shapes, non-numbers, NaN or infinity raise a one-line ValueError."""
         n1 = self._n1
         try:
             if isinstance(forces, (Mapping, AbstractSet, str, bytes)):   # iterating would read keys, not forces
@@ -333,7 +334,7 @@ class Plant:
             if holder is not None:
                 raise RuntimeError("plant: it is stepping in an open PlantBatch; step the batch (or close it) instead")
             solo = self._solo = PlantBatch([self.native], yields=True)
-        solo.forces[0] = self._check_forces(forces)
+        solo.forces[0] = self.checked_forces(forces)
         if solo.step_checked():
             raise solo.diverged(0)
         if self._band is not None:

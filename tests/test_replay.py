@@ -97,3 +97,17 @@ def test_replay_command(plant_log, tmp_path, capsys):
     assert "changed: friction.c_s = 0.6" in text and "exceeds 0.001 deg" in text
     assert main(["replay", str(plant_log), "--no-output", "--set", "friction"]) == 2
     assert "expected group.field=VALUE" in capsys.readouterr().err
+
+
+def test_replay_set_refuses_a_value_in_the_wrong_unit(plant_log, tmp_path, capsys):
+    """``--set`` goes through the parameter file's unit check: gravity 98.1 (10x Earth's) and a bar
+    length in millimetres are refused in one line before anything runs or is written."""
+    out = tmp_path / "r.mcap"
+    for change, word in (("inertia.gravity=98.1", "10x Earth's"), ("geometry.L=75", "millimetres")):
+        assert main(["replay", str(plant_log), "-o", str(out), "--no-progress", "--set", change]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and word in err[0] and "--accept-implausible-params" in err[0], err
+        assert not out.exists()
+    assert main(["replay", str(plant_log), "--no-output", "--no-progress", "--set", "inertia.gravity=29.4",
+                 "--accept-implausible-params"]) == 0
+    assert "warning: --set inertia.gravity = 29.4 m/s^2" in capsys.readouterr().out

@@ -23,6 +23,21 @@ def _parse_change(text: str) -> tuple[str, object]:
     return key.strip(), tuple(parsed) if isinstance(parsed, list) else parsed
 
 
+def _check_plausible_changes(changes: dict, *, accept: bool) -> None:
+    """Refuse a ``--set`` value that reads as a unit mistake (the parameter file's check,
+    :func:`neck_sim.params.implausible_values`), or warn when ``accept``."""
+    from neck_sim.params import implausible_values
+
+    nested: dict = {}
+    for key, value in changes.items():
+        group, _, field = key.partition(".")
+        nested.setdefault(group, {})[field] = value
+    for text in implausible_values(nested):
+        if not accept:
+            raise ValueError(f"--set {text} (pass --accept-implausible-params to use it anyway)")
+        print(f"warning: --set {text} (accepted: --accept-implausible-params)")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="MCAP log with /neck/motors (and /neck/truth for alpha drift)")
     parser.add_argument("-o", "--output", metavar="MCAP", help="replay log (default: LOG with -replay.mcap)")
@@ -51,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         output = args.output or os.path.splitext(args.log)[0] + "-replay.mcap"
     check_paths(inputs={"LOG": args.log, "--params": args.params}, files={"-o": output, "--json": args.json})
     changes = dict(_parse_change(s) for s in args.set)
+    _check_plausible_changes(changes, accept=args.accept_implausible_params)
     res = replay(args.log, params=load_params_file(args.params, accept_implausible=args.accept_implausible_params)
                  if args.params else None,
                  effects=Effects() if args.no_effects else None, changes=changes or None, output=output,
