@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from controllers.closed_loop import RunResult
 from neck_sim.atomic import atomic_write_bytes
 
-__all__ = ["joint_angles_figure", "forces_figure", "errors_figure", "save_figure", "save_run_plots"]
+__all__ = ["SUMMARY_FILES", "joint_angles_figure", "forces_figure", "errors_figure", "save_figure", "save_run_plots"]
 
 _CABLE_COLOURS = ("tab:blue", "gold", "tab:red", "tab:green")   # the paper's c1..c3 right, c4 left
 
@@ -125,6 +125,10 @@ def _slug(label: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", label).strip("_").lower() or "run"
 
 
+#: The files :func:`save_run_plots` writes whatever the runs (besides one ``angles_<label>.png`` each).
+SUMMARY_FILES = ("forces.png", "estimation_error.png", "tracking_error.png")
+
+
 def save_run_plots(results: Mapping[str, RunResult], directory: str | os.PathLike[str]) -> list[str]:
     """Figures 11-16 for one or several labelled runs into ``directory``; returns the PNG paths.
 
@@ -136,7 +140,8 @@ def save_run_plots(results: Mapping[str, RunResult], directory: str | os.PathLik
     directory = os.fspath(directory)
     paths = [save_figure(joint_angles_figure(res, f"joint angles: {label}"),
                          os.path.join(directory, f"angles_{_slug(label)}.png")) for label, res in results.items()]
-    paths.append(save_figure(forces_figure(results), os.path.join(directory, "forces.png")))
-    paths.append(save_figure(errors_figure(results, "estimation"), os.path.join(directory, "estimation_error.png")))
-    paths.append(save_figure(errors_figure(results, "tracking"), os.path.join(directory, "tracking_error.png")))
+    forces, estimation, tracking = (os.path.join(directory, name) for name in SUMMARY_FILES)
+    paths.append(save_figure(forces_figure(results), forces))
+    paths.append(save_figure(errors_figure(results, "estimation"), estimation))
+    paths.append(save_figure(errors_figure(results, "tracking"), tracking))
     return paths

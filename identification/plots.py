@@ -23,7 +23,7 @@ from neck_sim.atomic import atomic_write_bytes  # noqa: E402
 if TYPE_CHECKING:
     from identification.paper import IdentificationResult
 
-__all__ = ["save_figure", "figure_torques", "figure_tensions", "figure_tension_error", "figure_alpha",
+__all__ = ["FIGURE_FILES", "save_figure", "figure_torques", "figure_tensions", "figure_tension_error", "figure_alpha",
            "figure_simulator", "save_identification_figures"]
 
 
@@ -150,15 +150,20 @@ def figure_simulator(runs: dict, measured_key: str = "measured") -> Figure:
     return fig
 
 
+#: The files :func:`save_identification_figures` and ``neck-sim identify --plots`` may write (figures 4-9).
+FIGURE_FILES = ("fig4_torques.png", "fig5_tension_constant.png", "fig6_tension_error.png",
+                "fig7_tension_variable.png", "fig8_alpha.png", "fig9_simulators.png")
+
+
 def save_identification_figures(result: IdentificationResult, directory: str | os.PathLike[str]) -> list[str]:
     """Figures 4-8 as PNG files in ``directory`` (created); returns the paths written."""
     os.makedirs(directory, exist_ok=True)
-    paths = [save_figure(figure_torques(result), os.path.join(directory, "fig4_torques.png"))]
+    paths = [save_figure(figure_torques(result), os.path.join(directory, FIGURE_FILES[0]))]
     if "tension_constant" in result.series:
-        paths.append(save_figure(figure_tensions(result, "constant"), os.path.join(directory, "fig5_tension_constant.png")))
-        paths.append(save_figure(figure_tension_error(result), os.path.join(directory, "fig6_tension_error.png")))
+        paths.append(save_figure(figure_tensions(result, "constant"), os.path.join(directory, FIGURE_FILES[1])))
+        paths.append(save_figure(figure_tension_error(result), os.path.join(directory, FIGURE_FILES[2])))
     if "tension_variable" in result.series:
-        paths.append(save_figure(figure_tensions(result, "variable"), os.path.join(directory, "fig7_tension_variable.png")))
+        paths.append(save_figure(figure_tensions(result, "variable"), os.path.join(directory, FIGURE_FILES[3])))
     if "camera_alpha" in result.series:
-        paths.append(save_figure(figure_alpha(result), os.path.join(directory, "fig8_alpha.png")))
+        paths.append(save_figure(figure_alpha(result), os.path.join(directory, FIGURE_FILES[4])))
     return paths

@@ -320,6 +320,21 @@ def test_an_output_file_inside_a_report_directory_is_refused(tmp_path, log, caps
     assert code == 2 and "--json report.md" in err and "--report" in err and "its own path" in err
 
 
+@pytest.mark.parametrize("argv, figure", [
+    (["identify", "{log}", "--plots", ".", "--json", "fig4_torques.png"], "fig4_torques.png"),
+    (["simulate", "--duration-scale", "0.05", "--plots", ".", "--json", "forces.png"], "forces.png"),
+])
+def test_an_output_file_where_a_plot_goes_is_refused(argv, figure, tmp_path, log, capsys, monkeypatch):
+    """``--plots .`` writes its figures into the folder: ``--json`` on one of their names would be
+    replaced by a PNG; refused in one line before any work, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    before = snapshot(tmp_path)
+    code, _, err = run_cli([a.format(log=log) for a in argv], capsys)
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"--json {figure}" in err and "--plots" in err and "its own path" in err
+    assert snapshot(tmp_path) == before
+
+
 def test_an_output_directory_holding_an_input_is_fine(tmp_path, capsys, monkeypatch):
     reached = _no_diagnosis(monkeypatch)
     log = write_log(tmp_path / "long.mcap", _measured(seconds=0.5))       # 15 camera frames

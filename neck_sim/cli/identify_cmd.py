@@ -85,8 +85,13 @@ def _check_method_options(args) -> None:
 def run(args) -> int:
     _check_method_options(args)
     inputs = {("LOG" if i == 0 else f"LOG {i + 1}"): p for i, p in enumerate(args.log)}
+    figures = None
+    if args.plots:
+        from identification.plots import FIGURE_FILES
+
+        figures = {"--plots": FIGURE_FILES}
     check_paths(inputs={**inputs, "--params": args.params, "--model": args.model}, files={"--json": args.json},
-                dirs={"--plots": args.plots})
+                dirs={"--plots": args.plots}, contents=figures)
     from identification.paper import IdentificationSettings, format_tables, identify_log
     from identification.preprocessing import PreprocessSettings
     from neck_sim.logs import read_log
@@ -169,11 +174,11 @@ def run(args) -> int:
     if args.plots:
         import os
 
-        from identification.plots import figure_simulator, save_figure, save_identification_figures
+        from identification.plots import FIGURE_FILES, figure_simulator, save_figure, save_identification_figures
 
         paths = save_identification_figures(result, args.plots)
         if comparison is not None:
-            paths.append(save_figure(figure_simulator(comparison.series), os.path.join(args.plots, "fig9_simulators.png")))
+            paths.append(save_figure(figure_simulator(comparison.series), os.path.join(args.plots, FIGURE_FILES[5])))
         for path in paths:
             print(f"wrote {path}", file=sys.stderr)
     return 0

@@ -115,8 +115,13 @@ def run(args: argparse.Namespace) -> int:
     from controllers.selection import choose_controller, make_run_trajectory, plant_timestep
     from neck_sim.effect_option import parse_effects
 
+    figures = None
+    if args.plots:
+        from controllers.plots import SUMMARY_FILES
+
+        figures = {"--plots": SUMMARY_FILES}
     check_paths(inputs={"--params": args.params}, files={"-o": args.output, "--json": args.json},
-                dirs={"--plots": args.plots})
+                dirs={"--plots": args.plots}, contents=figures)
     params = params_from_args(args)
     effects = parse_effects(args.effect, params)
     choice = choose_controller(params, args.controller, laws=args.law, rigid_cables=args.rigid_cables,
