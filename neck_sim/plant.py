@@ -55,7 +55,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Set as AbstractSet
-from typing import NamedTuple, cast
+from typing import Any, NamedTuple, cast
 
 import mujoco
 import numpy as np
@@ -306,7 +306,7 @@ class Plant:
         self._lead = np.zeros(self._n1)                   # encoders zeroed in the middle of the band
         self._drum = self._out_theta.copy()
 
-    def checked_forces(self, forces: npt.ArrayLike) -> list:
+    def checked_forces(self, forces: Any) -> list[float]:
         """Commanded forces (m,) N as a list of floats clipped to [0, f_max] N, as :meth:`step` applies
         them; wrong shapes, non-numbers, NaN or infinity raise a one-line ValueError."""
         n1 = self._n1
