@@ -22,6 +22,13 @@ of the paper's model are recomputed with :mod:`neck_sim.analytic`:
    gross).  Measured, largest disagreement over the largest gross torque of the same joint, in
    closed-loop control tests: 0.30 % at ``--duration-scale 0.1``, 0.22 % at 0.2, 0.01 % at 1
    (the first two exceeded the net-only tolerance, up to 1.8x, and failed honest logs).
+   Where the disagreement comes from: it is the integrator's first-order error, not a missing
+   term of eq (30).  On the control test at ``--duration-scale 0.1`` the 20 ms-averaged
+   disagreement follows alpha_ddot (R^2 0.46-0.89 per joint) like an extra inertia of
+   0.95-1.67e-4 kg m^2 at the plant's 0.5 ms step, 0.52-0.92e-4 at 0.25 ms and 0.28-0.48e-4 at
+   0.125 ms: it halves with the step, and so does its largest value (0.0145, 0.0085, 0.0044 N m).
+   The implicit treatment of the cables' damping, h Z diag(c_a) Z^T, accounts for about 4e-5 of
+   it at 0.5 ms.  A smaller timestep, not a wider tolerance, is the way to a tighter check.
 3. ``elongation sign``: tension-only cables (eq 54) pull only when stretched: no sample may have
    tension > 0 with elongation <= 0 (tolerance 0).  With rigid cables the elongation must stay
    within the tolerance of relation 1 instead.
