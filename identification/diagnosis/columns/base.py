@@ -106,14 +106,34 @@ class Column:
         if self.per not in ("cable", "joint", "spring", "one"):
             raise ValueError(f"Column.per: 'cable', 'joint', 'spring' or 'one', got {self.per!r}")
 
-    def names(self, n_joints: int, n_cables: int) -> tuple[str, ...]:
-        """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables."""
+    def names(self, n_joints: int, n_cables: int, joint: int | None = None) -> tuple[str, ...]:
+        """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables; with
+        ``joint`` (1-based) those of that joint only (:meth:`select`)."""
         if self.per == "one":
             return (self.symbol,)
         if self.per == "spring":
-            return tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
-        count = {"cable": n_cables, "joint": n_joints}[self.per]
-        return tuple(f"{self.symbol}({i + 1})" for i in range(count))
+            out = tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
+        else:
+            count = {"cable": n_cables, "joint": n_joints}[self.per]
+            out = tuple(f"{self.symbol}({i + 1})" for i in range(count))
+        return out[self.select(joint)]
+
+    def select(self, joint: int | None) -> slice:
+        """The columns of 1-based ``joint`` among this group's (one per joint, two per joint's
+        side springs); every column when ``joint`` is None or the group is not per joint."""
+        if joint is None or self.per not in ("joint", "spring"):
+            return slice(None)
+        width = 2 if self.per == "spring" else 1
+        return slice(width * (joint - 1), width * joint)
+
+    def expand(self, values, n_joints: int, joint: int | None) -> np.ndarray:
+        """The group's values on every joint (zeros off ``joint``) from those of :meth:`select`."""
+        v = np.asarray(values, dtype=float)
+        if joint is None or self.per not in ("joint", "spring"):
+            return v
+        out = np.zeros(len(self.names(n_joints, 0)))
+        out[self.select(joint)] = v
+        return out
 
 
 @dataclass(frozen=True)
@@ -128,6 +148,10 @@ class Shape:
     ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable: ``search`` = ``"cable_law"``
     on that cable's law alone (an elongation offset), ``"fit"`` by whole fits with the shape on
     one cable at a time, on ``grid`` then refined between neighbours (a delay on one motor).
+    ``locates="joint"``: the value is a 1-based joint to which the effect's per-joint and
+    per-spring columns are restricted (a spring error, a hinge friction in one joint); absent from
+    a term, every joint.  Searched by whole fits joint by joint, its choice among N joints counted
+    in the candidate's p values (:meth:`EffectColumns.places`).
     """
 
     name: str
@@ -140,12 +164,15 @@ class Shape:
     per_cable: bool = False
     bounds: tuple | None = None
     search: str = "cable_law"
+    locates: str | None = None
 
     def __post_init__(self):
         if self.refine not in (None, "log", "linear"):
             raise ValueError(f"Shape.refine: None, 'log' or 'linear', got {self.refine!r}")
         if self.search not in ("cable_law", "fit"):
             raise ValueError(f"Shape.search: 'cable_law' or 'fit', got {self.search!r}")
+        if self.locates not in (None, "joint"):
+            raise ValueError(f"Shape.locates: None or 'joint', got {self.locates!r}")
 
     def per_cable_values(self, shape: dict, n_cables: int) -> np.ndarray:
         """This per-cable shape's values (n_cables,) from a shape dict's keys ``<name>_<i>``
@@ -198,6 +225,27 @@ class EffectColumns:
     def default_shape(cls) -> tuple:
         """((key, value), ...) sorted by key: the shape of a term named without one."""
         return tuple(sorted((s.name, float(s.default)) for s in cls.shapes if s.default is not None))
+
+    @classmethod
+    def joint_of(cls, shape: dict) -> int | None:
+        """The 1-based joint a located term acts on (its ``Shape.locates == "joint"`` key); None:
+        every joint."""
+        sh = next((s for s in cls.shapes if s.locates == "joint"), None)
+        v = None if sh is None else shape.get(sh.name)
+        return None if v is None else int(v)
+
+    @classmethod
+    def column_names(cls, n_joints: int, n_cables: int, shape: dict) -> tuple[tuple[str, str], ...]:
+        """(name, unit) of each regressor column of a term with ``shape`` (a located term: its
+        joint's only), in :meth:`design`'s order."""
+        joint = cls.joint_of(shape)
+        return tuple((nm, col.unit) for col in cls.columns for nm in col.names(n_joints, n_cables, joint))
+
+    @classmethod
+    def places(cls, shape: dict, n_joints: int) -> int:
+        """Among how many places the search chose where a term with ``shape`` acts: N for a
+        located term (its p values are multiplied by it, Bonferroni over the joints), else 1."""
+        return n_joints if cls.joint_of(shape) is not None else 1
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
