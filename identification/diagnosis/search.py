@@ -57,11 +57,10 @@ def search_shape(ctx: StepContext, name: str, trial):
         one = search_one_cable(ctx, trial, name, per_cable)
         done = [e for e in (best, one) if e is not None]
         best = min(done, key=trial_score) if done else None
-    located = next((sh for sh in effect_columns.get(name).shapes if sh.locates == "joint"), None)
-    if located is not None and best is not None:
+    if effect_columns.get(name).locates_joint and best is not None:
         # one joint against every joint: nested models, so not by training score (every joint's
         # columns always fit better) but by the training F-test, the one joint's p times N
-        one = search_one_joint(ctx, trial, name, located, best)
+        one = search_one_joint(ctx, trial, name, best)
         if one is not None and located_train_p(ctx, one) < located_train_p(ctx, best):
             best = one
     return best
@@ -87,20 +86,20 @@ def _refine_between(trial, name: str, shape: Shape, key: str, best):
     return min([best, at(u)], key=trial_score)
 
 
-def search_one_joint(ctx: StepContext, trial, name: str, shape: Shape, every):
-    """Best ``trial`` entry of candidate ``name`` located on one joint (its ``shape``, with
-    ``locates="joint"``): the joint whose columns alone fit best at the shape of ``every`` (the
-    every-joint entry), then at that joint the refined shape (``Shape.refine``) on its grid and
-    between the best grid point's neighbours; None when nothing fits."""
-    rest = tuple((k, v) for k, v in every[1].shape if k != shape.name)
-    done = [e for e in (trial(Term(name, rest + ((shape.name, j + 1),))) for j in range(ctx.data.n)) if e is not None]
+def search_one_joint(ctx: StepContext, trial, name: str, every):
+    """Best ``trial`` entry of candidate ``name`` located on one joint (shape key ``joint``,
+    ``EffectColumns.locates_joint``): the joint whose columns alone fit best at the shape of
+    ``every`` (the every-joint entry), then at that joint the refined shape (``Shape.refine``) on
+    its grid and between the best grid point's neighbours; None when nothing fits."""
+    rest = tuple((k, v) for k, v in every[1].shape if k != "joint")
+    done = [e for e in (trial(Term(name, rest + (("joint", j + 1),))) for j in range(ctx.data.n)) if e is not None]
     if not done:
         return None
     best = min(done, key=trial_score)
     refine = refined_shape(name)
     if refine is None:
         return best
-    at = ((shape.name, best[1].get(shape.name)),)
+    at = (("joint", best[1].get("joint")),)
     grid = [e for e in (trial(Term(name, at + ((refine.name, v),))) for v in refine.grid) if e is not None]
     if not grid:
         return best

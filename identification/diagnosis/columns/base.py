@@ -148,10 +148,6 @@ class Shape:
     ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable: ``search`` = ``"cable_law"``
     on that cable's law alone (an elongation offset), ``"fit"`` by whole fits with the shape on
     one cable at a time, on ``grid`` then refined between neighbours (a delay on one motor).
-    ``locates="joint"``: the value is a 1-based joint to which the effect's per-joint and
-    per-spring columns are restricted (a spring error, a hinge friction in one joint); absent from
-    a term, every joint.  Searched by whole fits joint by joint, its choice among N joints counted
-    in the candidate's p values (:meth:`EffectColumns.places`).
     """
 
     name: str
@@ -164,15 +160,12 @@ class Shape:
     per_cable: bool = False
     bounds: tuple | None = None
     search: str = "cable_law"
-    locates: str | None = None
 
     def __post_init__(self):
         if self.refine not in (None, "log", "linear"):
             raise ValueError(f"Shape.refine: None, 'log' or 'linear', got {self.refine!r}")
         if self.search not in ("cable_law", "fit"):
             raise ValueError(f"Shape.search: 'cable_law' or 'fit', got {self.search!r}")
-        if self.locates not in (None, "joint"):
-            raise ValueError(f"Shape.locates: None or 'joint', got {self.locates!r}")
 
     def per_cable_values(self, shape: dict, n_cables: int) -> np.ndarray:
         """This per-cable shape's values (n_cables,) from a shape dict's keys ``<name>_<i>``
@@ -215,6 +208,9 @@ class EffectColumns:
     uses_tension: ClassVar[bool] = False        # columns need the tension estimate (iterated fit)
     columns_exact: ClassVar[bool] = True        # columns x values = the plant's law exactly (False: the
     #                                             plant's law is a MuJoCo constraint the columns smooth)
+    # a term may carry the shape key ``joint`` (1-based): its per-joint and per-spring columns on
+    # that joint only (one joint's spring error, one hinge's friction), searched joint by joint
+    locates_joint: ClassVar[bool] = False
 
     @classmethod
     def effect_class(cls) -> type[Effect]:
@@ -228,10 +224,9 @@ class EffectColumns:
 
     @classmethod
     def joint_of(cls, shape: dict) -> int | None:
-        """The 1-based joint a located term acts on (its ``Shape.locates == "joint"`` key); None:
-        every joint."""
-        sh = next((s for s in cls.shapes if s.locates == "joint"), None)
-        v = None if sh is None else shape.get(sh.name)
+        """The 1-based joint a located term acts on (shape key ``joint`` of an effect with
+        :attr:`locates_joint`); None: every joint."""
+        v = shape.get("joint") if cls.locates_joint else None
         return None if v is None else int(v)
 
     @classmethod

@@ -46,8 +46,8 @@ class JointFrictionColumns(EffectColumns):
     effect: ClassVar[str] = JointFriction.name
     columns: ClassVar[tuple] = (Column("tau_j", "N m", per="joint"),)
     columns_exact: ClassVar[bool] = False       # MuJoCo's friction constraint vs a tanh sign
-    shapes: ClassVar[tuple] = (Shape("width", "rad/s", default=0.05, grid=(0.01, 0.05, 0.2), refine="log", span=3.0),
-                               Shape("joint", "-", locates="joint"))
+    shapes: ClassVar[tuple] = (Shape("width", "rad/s", default=0.05, grid=(0.01, 0.05, 0.2), refine="log", span=3.0),)
+    locates_joint: ClassVar[bool] = True
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:

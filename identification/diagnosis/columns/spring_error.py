@@ -11,7 +11,7 @@ from neck_sim.analytic import side_lengths
 from neck_sim.effects import SpringError
 from neck_sim.params import NeckParams
 
-from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext, Shape
+from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext
 
 __all__ = ["SpringErrorColumns", "spring_torque"]
 
@@ -37,7 +37,7 @@ class SpringErrorColumns(EffectColumns):
 
     effect: ClassVar[str] = SpringError.name
     columns: ClassVar[tuple] = (Column("dk", "N/m", per="spring", signed=False),)
-    shapes: ClassVar[tuple] = (Shape("joint", "-", locates="joint"),)
+    locates_joint: ClassVar[bool] = True
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
