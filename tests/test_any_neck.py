@@ -244,7 +244,8 @@ def test_hinge_friction_in_the_top_joint_is_named_and_located(blind10):
 def test_a_located_term_has_its_joints_columns_and_its_p_values_count_the_joints_searched():
     """A located term (shape ``joint``) of spring_error / joint_friction: its columns are those of
     the every-joint design named for its joint (looked up by name), the plant map puts its values
-    on that joint, and its p values are multiplied by N (Bonferroni over the joints searched)."""
+    on that joint, and its p values are multiplied by 2 N (Bonferroni over the two forms tried and
+    the N joints of the one-joint form), the every-joint form's by 2."""
     from types import SimpleNamespace
 
     from identification.diagnosis.candidates import Term
@@ -274,8 +275,10 @@ def test_a_located_term_has_its_joints_columns_and_its_p_values_count_the_joints
         assert np.count_nonzero(spread) == len(own) and list(spread[[names.index(nm) for nm in own]]) == list(values[cols.columns[0].symbol])
     cmp = Comparison(0.05, 0.05, 1e-4, 2e-3)
     located = located_comparison(cmp, Term("spring_error", (("joint", 3),)), n)
-    assert (located.p_holdout, located.p_train) == pytest.approx((n * 1e-4, n * 2e-3))
-    assert located_comparison(cmp, Term("spring_error", ()), n) == cmp
+    assert (located.p_holdout, located.p_train) == pytest.approx((2 * n * 1e-4, 2 * n * 2e-3))
+    every = located_comparison(cmp, Term("spring_error", ()), n)
+    assert (every.p_holdout, every.p_train) == pytest.approx((2e-4, 4e-3))
+    assert located_comparison(cmp, Term("payload", ()), n) == cmp
     assert located_comparison(Comparison(0.05, 0.05, 0.3, 0.5), Term("joint_friction", (("joint", 1), ("width", 0.05))),
                               n).p_train == 1.0
 

@@ -57,9 +57,11 @@ def search_shape(ctx: StepContext, name: str, trial):
         one = search_one_cable(ctx, trial, name, per_cable)
         done = [e for e in (best, one) if e is not None]
         best = min(done, key=trial_score) if done else None
-    if effect_columns.get(name).locates_joint and best is not None:
-        # one joint against every joint: nested models, so not by training score (every joint's
-        # columns always fit better) but by the training F-test, the one joint's p times N
+    if effect_columns.get(name).locates_joint and best is not None \
+            and not located_train_p(ctx, best) < ctx.alpha_candidate:
+        # every joint at once does not pass: one joint alone, which does not spread the evidence
+        # over N - 1 joints' noise.  Nested models, so not by training score (every joint's
+        # columns always fit better) but by the training F-test, each p times its tests (places)
         one = search_one_joint(ctx, trial, name, best)
         if one is not None and located_train_p(ctx, one) < located_train_p(ctx, best):
             best = one
@@ -108,8 +110,8 @@ def search_one_joint(ctx: StepContext, trial, name: str, every):
 
 def located_train_p(ctx: StepContext, entry) -> float:
     """The training F-test p of a ``trial`` entry against the step's baseline, as the candidate's
-    comparison computes it (its shape keys counted as parameters), times the places its location
-    was chosen among (:func:`located_comparison`)."""
+    comparison computes it (its shape keys counted as parameters), times the tests its term
+    stands for (:func:`located_comparison`)."""
     s, term, fit = entry
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
     p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
@@ -119,9 +121,10 @@ def located_train_p(ctx: StepContext, entry) -> float:
 
 def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Comparison:
     """``comparison`` of a term against the step's baseline with both p values multiplied by the
-    places the term's location was chosen among (Bonferroni over the N joints a located term was
-    searched on; unchanged for other terms): the best of N joints would pass a test at alpha
-    about N times as often as one joint named in advance."""
+    tests the term stands for (``EffectColumns.places``: Bonferroni over the two forms of an effect
+    searched joint by joint and the N joints of its one-joint form; unchanged for other terms):
+    the best of N joints would pass a test at alpha about N times as often as one joint named in
+    advance."""
     places = term.identification.places(dict(term.shape), n_joints)
     if places == 1:
         return comparison

@@ -238,9 +238,13 @@ class EffectColumns:
 
     @classmethod
     def places(cls, shape: dict, n_joints: int) -> int:
-        """Among how many places the search chose where a term with ``shape`` acts: N for a
-        located term (its p values are multiplied by it, Bonferroni over the joints), else 1."""
-        return n_joints if cls.joint_of(shape) is not None else 1
+        """The number of tests a term with ``shape`` stands for (its p values are multiplied by it:
+        Bonferroni).  An effect with :attr:`locates_joint` is tried in two forms, each at half the
+        candidate's level: every joint at once (2), then, when that form does not pass, each of
+        the N joints alone (2 N); 1 for every other effect."""
+        if not cls.locates_joint:
+            return 1
+        return 2 * n_joints if cls.joint_of(shape) is not None else 2
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
