@@ -100,8 +100,10 @@ def _candidate_fit(diag, spec) -> str:
     if spec.symbol is None or not diag.steps:
         return ""
     for c in diag.steps[0].candidates:
-        if c.term.name != spec.expect or c.fit is None or spec.symbol not in c.fit.names:
+        if c.term.name != spec.expect or c.fit is None:
             continue
+        if spec.symbol not in c.fit.names:          # a one-joint candidate on another joint
+            return f"one joint: {c.term.identification.joint_of(dict(c.term.shape))} (p {c.p_train:.2g})"
         names = list(c.fit.names)
         i = names.index(spec.symbol)
         own = [k for k, n in enumerate(names) if n.split("(")[0] == spec.symbol.split("(")[0]]
