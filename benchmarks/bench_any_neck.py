@@ -102,13 +102,15 @@ def _candidate_fit(diag, spec) -> str:
     for c in diag.steps[0].candidates:
         if c.term.name != spec.expect or c.fit is None:
             continue
-        if spec.symbol not in c.fit.names:          # a one-joint candidate on another joint
-            return f"one joint: {c.term.identification.joint_of(dict(c.term.shape))} (p {c.p_train:.2g})"
+        joint = c.term.identification.joint_of(dict(c.term.shape))
+        if spec.symbol not in c.fit.names:
+            if joint is not None:                    # a one-joint candidate on another joint
+                return f"one joint: {joint} (p {c.p_train:.2g})"
+            continue
         names = list(c.fit.names)
         i = names.index(spec.symbol)
         own = [k for k, n in enumerate(names) if n.split("(")[0] == spec.symbol.split("(")[0]]
         top = max(own, key=lambda k: abs(c.fit.value[k]) / max(c.fit.sigma[k], 1e-300))
-        joint = c.term.identification.joint_of(dict(c.term.shape))
         form = f"; one joint: {joint}" if joint is not None else ""
         return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
                 f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")

@@ -63,7 +63,7 @@ def search_shape(ctx: StepContext, name: str, trial):
         # over N - 1 joints' noise.  Nested models, so not by training score (every joint's
         # columns always fit better) but by the training F-test, each p times its tests (places)
         one = search_one_joint(ctx, trial, name, best)
-        if one is not None and located_train_p(ctx, one) < located_train_p(ctx, best):
+        if one is not None and located_train_p(ctx, one, bound=False) < located_train_p(ctx, best, bound=False):
             best = one
     return best
 
@@ -108,15 +108,17 @@ def search_one_joint(ctx: StepContext, trial, name: str, every):
     return min([best, _refine_between(trial, name, refine, refine.name, min(grid, key=trial_score))], key=trial_score)
 
 
-def located_train_p(ctx: StepContext, entry) -> float:
+def located_train_p(ctx: StepContext, entry, bound: bool = True) -> float:
     """The training F-test p of a ``trial`` entry against the step's baseline, as the candidate's
     comparison computes it (its shape keys counted as parameters), times the tests its term
-    stands for (:func:`located_comparison`)."""
+    stands for (:func:`located_comparison`); ``bound=False``: not capped at 1 (two forms that both
+    fail are still ordered)."""
     s, term, fit = entry
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
     p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
                  max(ctx.n_eff - fit.n_params - added, 1))
-    return min(1.0, p * term.identification.places(dict(term.shape), ctx.data.n))
+    p *= term.identification.places(dict(term.shape), ctx.data.n)
+    return min(1.0, p) if bound else p
 
 
 def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Comparison:
