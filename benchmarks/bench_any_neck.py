@@ -18,7 +18,8 @@ one log per hidden effect (``tests/open_world/generator.py``: MuJoCo fields and 
 own, never the candidates' code; 15.6 s reachable-path runs), diagnosed blind (one step, no
 re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one,
 and the hidden effect's own candidate at step 1 whether named or not (its fit at the hidden place,
-F-test p, and where its largest |value| / sigma sits).
+training F-test and held-out Wilcoxon p as the step tests them, its cross-validated improvement,
+where its largest |value| / sigma sits, and the joint of a one-joint (located) candidate).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
@@ -99,13 +100,20 @@ def _candidate_fit(diag, spec) -> str:
     if spec.symbol is None or not diag.steps:
         return ""
     for c in diag.steps[0].candidates:
-        if c.term.name != spec.expect or c.fit is None or spec.symbol not in c.fit.names:
+        if c.term.name != spec.expect or c.fit is None:
+            continue
+        joint = c.term.identification.joint_of(dict(c.term.shape))
+        if spec.symbol not in c.fit.names:
+            if joint is not None:                    # a one-joint candidate on another joint
+                return f"one joint: {joint} (p {c.p_train:.2g})"
             continue
         names = list(c.fit.names)
         i = names.index(spec.symbol)
         own = [k for k, n in enumerate(names) if n.split("(")[0] == spec.symbol.split("(")[0]]
         top = max(own, key=lambda k: abs(c.fit.value[k]) / max(c.fit.sigma[k], 1e-300))
-        return f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}; top {names[top]})"
+        form = f"; one joint: {joint}" if joint is not None else ""
+        return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
+                f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")
     return ""
 
 

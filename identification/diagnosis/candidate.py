@@ -9,7 +9,7 @@ import numpy as np
 
 from identification.diagnosis.candidates import Fit, Term
 from identification.diagnosis.fitting import Evaluated, StepContext
-from identification.diagnosis.search import search_shape, shape_grid
+from identification.diagnosis.search import located_comparison, search_shape, shape_grid
 from identification.diagnosis.statistics import block_scores, in_band, score
 
 
@@ -90,7 +90,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
-    cmp = ctx.compare(ctx.base, ev, added)
+    cmp = located_comparison(ctx.compare(ctx.base, ev, added), term, ctx.data.n)
     every = np.ones(ctx.data.S, bool)
     bb = block_scores(ctx.base.cv, every, ctx.scales, ctx.data.n)
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)

@@ -329,7 +329,8 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         for term in model.terms:
             eff = term.identification
             design = eff.design(data, dict(term.shape), ctx)
-            cols = [nm for col in eff.columns for nm in col.names(n, C)]
+            named = eff.column_names(n, C, dict(term.shape))
+            cols = [nm for nm, _ in named]
             if design.torque.shape[2] != len(cols) or design.cable.shape[2] != len(cols):
                 raise RuntimeError(f"{term.name}.design: {design.torque.shape[2]} torque and {design.cable.shape[2]} "
                                    f"cable columns for {len(cols)} names {cols}")
@@ -339,7 +340,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
                 motor_fast.append((len(names), *design.motor))
             designs.append(design)
             names += cols
-            units += [col.unit for col in eff.columns for _ in col.names(n, C)]
+            units += [u for _, u in named]
         p = len(names)
         stiff = k_hat + lam_hat * np.maximum(t_slow, 0.0)                       # (S, C) N/m
         AT, AC = Design.concat(designs, n, C, S)                                 # (S, N, p), (S, C, p)

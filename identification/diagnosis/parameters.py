@@ -39,6 +39,9 @@ def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
     """1-based items (``per`` = "cable" or "joint") whose magnitude (the effect's first column) is
     clearly non-zero; None when that column is not one per such item."""
     cols = term.identification.columns
+    joint = term.identification.joint_of(dict(term.shape))
+    if joint is not None:               # a located term: the joint its search chose
+        return [joint] if per == "joint" else None
     # per-spring magnitudes (2 per joint: left, right) locate joints
     items_per = {per: 1, "spring": 2} if per == "joint" else {per: 1}
     if not cols or cols[0].per not in items_per or not fit.has(cols[0].symbol):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from itertools import product
 
@@ -14,7 +15,7 @@ from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis import columns as effect_columns
 from identification.diagnosis.columns import Shape
-from identification.diagnosis.statistics import effective_samples, f_test_p, score
+from identification.diagnosis.statistics import Comparison, effective_samples, f_test_p, score
 from neck_sim.analytic.dynamics import cable_stiffness
 
 
@@ -56,12 +57,21 @@ def search_shape(ctx: StepContext, name: str, trial):
         one = search_one_cable(ctx, trial, name, per_cable)
         done = [e for e in (best, one) if e is not None]
         best = min(done, key=trial_score) if done else None
+    if effect_columns.get(name).locates_joint and best is not None \
+            and not located_train_p(ctx, best) < ctx.alpha_candidate:
+        # every joint at once does not pass: one joint alone, which does not spread the evidence
+        # over N - 1 joints' noise.  Nested models, so not by training score (every joint's
+        # columns always fit better) but by the training F-test, each p times its tests (places)
+        one = search_one_joint(ctx, trial, name, best)
+        if one is not None and located_train_p(ctx, one, bound=False) < located_train_p(ctx, best, bound=False):
+            best = one
     return best
 
 
 def _refine_between(trial, name: str, shape: Shape, key: str, best):
     """``best`` (a ``trial`` entry whose term sets ``key`` on ``shape``'s grid) or the minimiser of
-    the training score between that grid point's neighbours, whichever scores lower."""
+    the training score between that grid point's neighbours (the term's other shape keys kept),
+    whichever scores lower."""
     log_scale = shape.refine == "log"
     grid = sorted(shape.grid)
     i = grid.index(best[1].get(key))
@@ -69,8 +79,59 @@ def _refine_between(trial, name: str, shape: Shape, key: str, best):
     hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]
     to = (lambda u: float(np.exp(u))) if log_scale else (lambda u: u)
     a, b = (np.log(lo), np.log(hi)) if log_scale else (lo, hi)
-    u = minimise_bounded(lambda u: trial_score(trial(Term(name, ((key, round(to(u), 6)),)))), a, b, 0.02 * (b - a))
-    return min([best, trial(Term(name, ((key, round(to(u), 6)),)))], key=trial_score)
+    rest = tuple((k, v) for k, v in best[1].shape if k != key)
+
+    def at(u):
+        return trial(Term(name, rest + ((key, round(to(u), 6)),)))
+
+    u = minimise_bounded(lambda u: trial_score(at(u)), a, b, 0.02 * (b - a))
+    return min([best, at(u)], key=trial_score)
+
+
+def search_one_joint(ctx: StepContext, trial, name: str, every):
+    """Best ``trial`` entry of candidate ``name`` located on one joint (shape key ``joint``,
+    ``EffectColumns.locates_joint``): the joint whose columns alone fit best at the shape of
+    ``every`` (the every-joint entry), then at that joint the refined shape (``Shape.refine``) on
+    its grid and between the best grid point's neighbours; None when nothing fits."""
+    rest = tuple((k, v) for k, v in every[1].shape if k != "joint")
+    done = [e for e in (trial(Term(name, rest + (("joint", j + 1),))) for j in range(ctx.data.n)) if e is not None]
+    if not done:
+        return None
+    best = min(done, key=trial_score)
+    refine = refined_shape(name)
+    if refine is None:
+        return best
+    at = (("joint", best[1].get("joint")),)
+    grid = [e for e in (trial(Term(name, at + ((refine.name, v),))) for v in refine.grid) if e is not None]
+    if not grid:
+        return best
+    return min([best, _refine_between(trial, name, refine, refine.name, min(grid, key=trial_score))], key=trial_score)
+
+
+def located_train_p(ctx: StepContext, entry, bound: bool = True) -> float:
+    """The training F-test p of a ``trial`` entry against the step's baseline, as the candidate's
+    comparison computes it (its shape keys counted as parameters), times the tests its term
+    stands for (:func:`located_comparison`); ``bound=False``: not capped at 1 (two forms that both
+    fail are still ordered)."""
+    s, term, fit = entry
+    added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
+    p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
+                 max(ctx.n_eff - fit.n_params - added, 1))
+    p *= term.identification.places(dict(term.shape), ctx.data.n)
+    return min(1.0, p) if bound else p
+
+
+def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Comparison:
+    """``comparison`` of a term against the step's baseline with both p values multiplied by the
+    tests the term stands for (``EffectColumns.places``: Bonferroni over the two forms of an effect
+    searched joint by joint and the N joints of its one-joint form; unchanged for other terms):
+    the best of N joints would pass a test at alpha about N times as often as one joint named in
+    advance."""
+    places = term.identification.places(dict(term.shape), n_joints)
+    if places == 1:
+        return comparison
+    return dataclasses.replace(comparison, p_holdout=min(1.0, places * comparison.p_holdout),
+                               p_train=min(1.0, places * comparison.p_train))
 
 
 def search_one_cable(ctx: StepContext, trial, name: str, shape: Shape):

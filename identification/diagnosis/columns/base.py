@@ -106,14 +106,34 @@ class Column:
         if self.per not in ("cable", "joint", "spring", "one"):
             raise ValueError(f"Column.per: 'cable', 'joint', 'spring' or 'one', got {self.per!r}")
 
-    def names(self, n_joints: int, n_cables: int) -> tuple[str, ...]:
-        """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables."""
+    def names(self, n_joints: int, n_cables: int, joint: int | None = None) -> tuple[str, ...]:
+        """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables; with
+        ``joint`` (1-based) those of that joint only (:meth:`select`)."""
         if self.per == "one":
             return (self.symbol,)
         if self.per == "spring":
-            return tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
-        count = {"cable": n_cables, "joint": n_joints}[self.per]
-        return tuple(f"{self.symbol}({i + 1})" for i in range(count))
+            out = tuple(f"{self.symbol}({i + 1}{side})" for i in range(n_joints) for side in "LR")
+        else:
+            count = {"cable": n_cables, "joint": n_joints}[self.per]
+            out = tuple(f"{self.symbol}({i + 1})" for i in range(count))
+        return out[self.select(joint)]
+
+    def select(self, joint: int | None) -> slice:
+        """The columns of 1-based ``joint`` among this group's (one per joint, two per joint's
+        side springs); every column when ``joint`` is None or the group is not per joint."""
+        if joint is None or self.per not in ("joint", "spring"):
+            return slice(None)
+        width = 2 if self.per == "spring" else 1
+        return slice(width * (joint - 1), width * joint)
+
+    def expand(self, values, n_joints: int, joint: int | None) -> np.ndarray:
+        """The group's values on every joint (zeros off ``joint``) from those of :meth:`select`."""
+        v = np.asarray(values, dtype=float)
+        if joint is None or self.per not in ("joint", "spring"):
+            return v
+        out = np.zeros(len(self.names(n_joints, 0)))
+        out[self.select(joint)] = v
+        return out
 
 
 @dataclass(frozen=True)
@@ -188,6 +208,9 @@ class EffectColumns:
     uses_tension: ClassVar[bool] = False        # columns need the tension estimate (iterated fit)
     columns_exact: ClassVar[bool] = True        # columns x values = the plant's law exactly (False: the
     #                                             plant's law is a MuJoCo constraint the columns smooth)
+    # a term may carry the shape key ``joint`` (1-based): its per-joint and per-spring columns on
+    # that joint only (one joint's spring error, one hinge's friction), searched joint by joint
+    locates_joint: ClassVar[bool] = False
 
     @classmethod
     def effect_class(cls) -> type[Effect]:
@@ -198,6 +221,30 @@ class EffectColumns:
     def default_shape(cls) -> tuple:
         """((key, value), ...) sorted by key: the shape of a term named without one."""
         return tuple(sorted((s.name, float(s.default)) for s in cls.shapes if s.default is not None))
+
+    @classmethod
+    def joint_of(cls, shape: dict) -> int | None:
+        """The 1-based joint a located term acts on (shape key ``joint`` of an effect with
+        :attr:`locates_joint`); None: every joint."""
+        v = shape.get("joint") if cls.locates_joint else None
+        return None if v is None else int(v)
+
+    @classmethod
+    def column_names(cls, n_joints: int, n_cables: int, shape: dict) -> tuple[tuple[str, str], ...]:
+        """(name, unit) of each regressor column of a term with ``shape`` (a located term: its
+        joint's only), in :meth:`design`'s order."""
+        joint = cls.joint_of(shape)
+        return tuple((nm, col.unit) for col in cls.columns for nm in col.names(n_joints, n_cables, joint))
+
+    @classmethod
+    def places(cls, shape: dict, n_joints: int) -> int:
+        """The number of tests a term with ``shape`` stands for (its p values are multiplied by it:
+        Bonferroni).  An effect with :attr:`locates_joint` is tried in two forms, each at half the
+        candidate's level: every joint at once (2), then, when that form does not pass, each of
+        the N joints alone (2 N); 1 for every other effect."""
+        if not cls.locates_joint:
+            return 1
+        return 2 * n_joints if cls.joint_of(shape) is not None else 2
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:

@@ -33,7 +33,8 @@ def joint_speed_from_encoders(theta_dot, alpha, params: NeckParams) -> np.ndarra
 
 
 class JointFrictionColumns(EffectColumns):
-    """tau_j (N m per hinge) per joint, torque block only: torque x :func:`hinge_lever`(alpha) x
+    """tau_j (N m per hinge) per joint (with the shape ``joint`` = j, located: joint j's only),
+    torque block only: torque x :func:`hinge_lever`(alpha) x
     tanh(alpha_dot / w), alpha_dot from the encoders (:func:`joint_speed_from_encoders`) through
     the observations' filter chain, w a searched smoothing speed (rad/s).  tanh, not the arctan of
     eq 36: a hinge's friction saturates at its Coulomb level within about 0.1 rad/s, where
@@ -46,6 +47,7 @@ class JointFrictionColumns(EffectColumns):
     columns: ClassVar[tuple] = (Column("tau_j", "N m", per="joint"),)
     columns_exact: ClassVar[bool] = False       # MuJoCo's friction constraint vs a tanh sign
     shapes: ClassVar[tuple] = (Shape("width", "rad/s", default=0.05, grid=(0.01, 0.05, 0.2), refine="log", span=3.0),)
+    locates_joint: ClassVar[bool] = True
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
@@ -63,8 +65,10 @@ class JointFrictionColumns(EffectColumns):
             return data.to_slow(fast)
 
         col = data.cached((cls.effect, shape["width"]), compute)
-        return Design(col[:, :, None] * np.eye(data.n), np.zeros((data.S, data.C, data.n)))
+        cols = (col[:, :, None] * np.eye(data.n))[:, :, cls.columns[0].select(cls.joint_of(shape))]
+        return Design(cols, np.zeros((data.S, data.C, cols.shape[2])))
 
     @classmethod
     def to_plant(cls, params, values, shape):
-        return params, JointFriction(torque=tuple(np.clip(np.asarray(values["tau_j"], dtype=float), 0.0, None)))
+        tau = cls.columns[0].expand(values["tau_j"], params.n_joints, cls.joint_of(shape))
+        return params, JointFriction(torque=tuple(np.clip(tau, 0.0, None)))

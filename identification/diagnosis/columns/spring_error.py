@@ -1,4 +1,5 @@
-"""Columns of ``spring_error``: a stiffness change per side spring (2N columns)."""
+"""Columns of ``spring_error``: a stiffness change per side spring (2N columns), or of the two
+side springs of one joint (a located term, shape ``joint``)."""
 
 from __future__ import annotations
 
@@ -29,11 +30,14 @@ def spring_torque(alpha, params: NeckParams) -> np.ndarray:
 
 
 class SpringErrorColumns(EffectColumns):
-    """dk (N/m) per side spring (joint 1 left, joint 1 right, ...), torque block only; mapped to
-    the plant as ``SpringError(dk=...)`` (MuJoCo's tendon stiffness)."""
+    """dk (N/m) per side spring (joint 1 left, joint 1 right, ...), torque block only; with the
+    shape ``joint`` = j (located: searched joint by joint) the two springs of joint j only, whose
+    torque acts on joint j's row alone.  Mapped to the plant as ``SpringError(dk=...)`` (MuJoCo's
+    tendon stiffness)."""
 
     effect: ClassVar[str] = SpringError.name
     columns: ClassVar[tuple] = (Column("dk", "N/m", per="spring", signed=False),)
+    locates_joint: ClassVar[bool] = True
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
@@ -43,10 +47,11 @@ class SpringErrorColumns(EffectColumns):
         cols = np.zeros((S, n, 2 * n))
         for j in range(n):
             cols[:, j, 2 * j:2 * j + 2] = torque[:, j, :]
-        return Design(cols, np.zeros((S, data.C, 2 * n)))
+        cols = cols[:, :, cls.columns[0].select(cls.joint_of(shape))]
+        return Design(cols, np.zeros((S, data.C, cols.shape[2])))
 
     @classmethod
     def to_plant(cls, params, values, shape):
         k = np.repeat(np.asarray(params.springs.stiffness, dtype=float), 2)
-        dk = np.maximum(np.asarray(values["dk"], dtype=float), -k)
+        dk = np.maximum(cls.columns[0].expand(values["dk"], params.n_joints, cls.joint_of(shape)), -k)
         return params, SpringError(dk=tuple(dk))
