@@ -18,6 +18,13 @@ m; alpha_hat against the camera j, deg):
 
 The size of a structure against the noise is |rho| / sqrt(1 - rho^2): the RMS of the part that
 follows the feature over the RMS of the rest.
+
+A name beside a leftover must stand on its own (:func:`borrowed_names`): each finding is tested
+again against its step's baseline after the leftover's structure (the features each residual
+channel follows) is regressed out of both models' residuals.  An effect outside the vocabulary
+lends a look-alike name part of its gain (creep: a rest elongation soaks up the mean of the
+drift); once the drift is removed from both sides that gain is gone, and the verdict is
+``unexplained`` without the borrowed name.
 """
 
 from __future__ import annotations
@@ -31,7 +38,7 @@ from identification.diagnosis.settings import StructureSettings
 from identification.diagnosis.statistics import effective_samples
 
 __all__ = ["StructureSettings", "Structure", "Leftover", "correlations", "lag_one", "bonferroni_z", "state_features",
-           "leftover_structure", "test_margin"]
+           "leftover_structure", "test_margin", "remove_structure", "borrowed_names"]
 
 
 # ------------------------------------------------------------------------------ pure functions
@@ -159,6 +166,9 @@ class Leftover:
     plot: tuple | None = field(default=None, repr=False)
     closest: tuple = ()            # the tests nearest their decision: (margin in bands, Structure), largest first
     min_rho: float = float("nan")  # the |rho| a structure needed here (min_rho, or min_rho_named beside a name)
+    features: tuple = field(default=(), repr=False)   # (names, (S, F) array) of the state features tested
+    borrowed: tuple = ()           # names whose gain does not stand without the leftover (borrowed_names)
+    retests: tuple = ()            # (name, Comparison) of borrowed_names, one per finding re-tested
 
     @property
     def significant(self) -> bool:
@@ -184,7 +194,9 @@ class Leftover:
         return {"significant": self.significant, "structures": [s.to_dict() for s in self.found[:10]],
                 "n_structures": len(self.found), "z_threshold": self.z_threshold, "n_tests": self.n_tests,
                 "min_rho": self.min_rho, "min_rho_white": self.settings.min_rho_white,
-                "margin": self.margin_dict(),
+                "margin": self.margin_dict(), "borrowed": list(self.borrowed),
+                "retests": [{"effect": n, "improvement": c.improvement, "p_holdout": c.p_holdout,
+                             "p_train": c.p_train} for n, c in self.retests],
                 "closest": [{"margin_in_bands": m, **x.to_dict()} for m, x in self.closest[:5]]}
 
 
@@ -269,4 +281,70 @@ def leftover_structure(data, fit, cv_residuals: np.ndarray, alpha_hat=None,
         arr, t, fa = series[block]
         col = k if block == 0 else k - res.shape[1]
         plot = (top, t, arr[:, col], fa[:, f])
-    return Leftover(tuple(found), zc, n_tests, s, plot, tuple(near[:10]), min_rho)
+    return Leftover(tuple(found), zc, n_tests, s, plot, tuple(near[:10]), min_rho, (names, feats))
+
+
+# ------------------------------------------------------------------------- borrowed names
+
+def remove_structure(res: np.ndarray, feats: np.ndarray, by_channel: dict) -> np.ndarray:
+    """``res`` (S, K) with, on each channel k of ``by_channel`` (k -> feature indices), its least-
+    squares fit on those features and a constant removed (over its finite samples)."""
+    out = np.array(res, dtype=float, copy=True)
+    for k, cols in by_channel.items():
+        ok = np.isfinite(out[:, k])
+        if ok.sum() <= len(cols) + 1:
+            continue
+        X = np.column_stack([np.ones(int(ok.sum())), feats[ok][:, cols]])
+        coef, *_ = np.linalg.lstsq(X, out[ok, k], rcond=None)
+        out[ok, k] -= X @ coef
+    return out
+
+
+class _Cleaned:
+    """A fit seen through its residuals with the leftover's structure removed (what
+    :meth:`~identification.diagnosis.fitting.StepContext.compare` reads of a fit)."""
+
+    def __init__(self, fit, residuals: np.ndarray):
+        self.n_params, self._res = fit.n_params, residuals
+
+    def residuals(self) -> np.ndarray:
+        return self._res
+
+
+def borrowed_names(data, split, settings, steps, leftover: Leftover) -> tuple[tuple, tuple]:
+    """(names, retests): the findings of ``steps`` (forward-selection steps of a diagnosis with
+    ``settings`` on ``split``) whose gain does not stand once the structure ``leftover`` found
+    is regressed out, on each residual channel, of both the step's baseline and the extended
+    model (their cross-validated and training residuals); ``retests`` the comparisons, one per
+    finding.  Whiteness and the alpha_hat channels carry no feature of the residuals: only the
+    residual channels' feature structures are removed."""
+    from identification.diagnosis.fitting import Evaluated, StepContext
+
+    if not leftover.significant or not leftover.features:
+        return (), ()
+    names, feats = leftover.features
+    K = data.n + data.C
+    ch_names, _ = _channel_names(data.n, data.C)
+    by_channel: dict = {}
+    for x in leftover.found:
+        if x.feature == "whiteness" or x.channel not in ch_names[:K]:
+            continue
+        by_channel.setdefault(ch_names.index(x.channel), []).append(names.index(x.feature))
+    if not by_channel:
+        return (), ()
+    out, retests = [], []
+    for st in steps:
+        c = st.chosen
+        if c is None:
+            continue
+        ctx = StepContext(data, split, settings, st.base, st.scales, family=len(st.candidates))
+
+        def clean(ev):
+            cv = remove_structure(ev.cv, feats, by_channel)
+            return Evaluated(_Cleaned(ev.fit, remove_structure(ev.fit.residuals(), feats, by_channel)), cv)
+
+        cmp = ctx.compare(clean(st.base), clean(c.model), c.added_params)
+        retests.append((c.term.name, cmp))
+        if not ctx.candidate_significant(cmp):
+            out.append(c.term.name)
+    return tuple(out), tuple(retests)
