@@ -112,7 +112,8 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
                               alpha[i], resim.get(i), ev.cv) for i, ev in enumerate(evaluated)]
     t1 = time.perf_counter()
     leftover = None if fatal else leftover_structure(data, fits[-1], evaluated[-1].cv, alpha[-1], s.structure,
-                                                     named=any(st.chosen is not None for st in steps), band=s.borderline)
+                                                     named=any(st.chosen is not None for st in steps), band=s.borderline,
+                                                     base_cv=evaluated[0].cv)
     if leftover is not None and leftover.significant:
         # a name beside the leftover must keep its gain without the leftover's structure
         lent, retests = borrowed_names(data, split, s, steps, leftover)
