@@ -62,6 +62,7 @@ def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
     ``sign_violation``): the candidate then only reshapes another effect."""
     symbols = [col.symbol for col in term.identification.columns if fit.has(col.symbol)]
     why = term.identification.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    why = why or term.identification.shape_violation(dict(term.shape))
     return not why, why
 
 

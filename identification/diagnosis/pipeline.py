@@ -21,7 +21,7 @@ from identification.diagnosis.search import retune_shapes
 from identification.diagnosis.selection import Step, run_step
 from identification.diagnosis.settings import DiagnosisSettings, ModelLike, parse_model
 from identification.diagnosis.split import split_samples
-from identification.diagnosis.structure import leftover_structure
+from identification.diagnosis.structure import borrowed_names, leftover_structure
 from identification.diagnosis.support import blocked_candidates, excitation_summary, log_gaps, short_log_gap
 from identification.preprocessing import Measurements
 from neck_sim.analytic import UnreachableError
@@ -112,7 +112,12 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
                               alpha[i], resim.get(i), ev.cv) for i, ev in enumerate(evaluated)]
     t1 = time.perf_counter()
     leftover = None if fatal else leftover_structure(data, fits[-1], evaluated[-1].cv, alpha[-1], s.structure,
-                                                     named=any(st.chosen is not None for st in steps), band=s.borderline)
+                                                     named=any(st.chosen is not None for st in steps), band=s.borderline,
+                                                     base_cv=evaluated[0].cv)
+    if leftover is not None and leftover.significant:
+        # a name beside the leftover must keep its gain without the leftover's structure
+        lent, retests = borrowed_names(data, split, s, steps, leftover)
+        leftover = dataclasses.replace(leftover, borrowed=lent, retests=retests)
     timings["structure"] = time.perf_counter() - t1
     findings = []
     for i, st in enumerate(steps):

@@ -198,7 +198,8 @@ class Diagnosis:
         forward steps found (one name, or a list: several findings, or look-alikes the data
         cannot tell apart), "none" when nothing was found, with ``UNEXPLAINED`` when the final
         model leaves structure beyond noise: alone instead of "none", appended to the names
-        otherwise."""
+        otherwise (a name whose gain does not stand without that structure, the leftover's
+        ``borrowed``, is left out)."""
         if self.insufficient:
             return INSUFFICIENT_EXCITATION
         names = []
@@ -206,7 +207,7 @@ class Diagnosis:
             if st.chosen is None:
                 break
             for n in (st.verdict if isinstance(st.verdict, list) else [st.verdict]):
-                if n not in names:
+                if n not in names and (self.leftover is None or n not in self.leftover.borrowed):
                     names.append(n)
         if self.leftover is not None and self.leftover.significant:
             names.append(UNEXPLAINED)

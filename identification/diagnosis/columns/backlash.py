@@ -67,17 +67,33 @@ class BacklashColumns(EffectColumns):
 
     @classmethod
     def fit_force_offset(cls, data: ColumnData, shape: dict):
-        """The inertia term from the drum's acceleration (the plant's motor inertia moves with the
-        drum; the encoders show the motor): y_C + (R/r_d)^2 I_a d^2(lead)/dt^2, N."""
+        """What the encoders misread of the cable-side force y_C of eq (37), N: the motor
+        inertia's term from the drum's acceleration, + (R/r_d)^2 I_a d^2(lead)/dt^2, and the dry
+        friction of eq (37) at the drum's speed, + f_s [g(theta_dot) - g(theta_dot - (R/r_d)
+        d(lead)/dt)] with g(w) = (2/pi) arctan(c_s w) and the nominal f_s, c_s (the friction acts
+        where the drum turns; across a reversal the encoder crosses the band and its speed leads
+        the drum's by a burst of band x R/r_d rad, the play's strongest trace: 15 N of force for
+        tens of ms at each reversal, against the +-band/2 of elongation)."""
         bands = cls.bands(shape, data.C)
         if not np.any(bands > 0):
             return None
 
         def compute():
+            from identification.preprocessing import lowpass
+            from neck_sim.effects.dry_friction import arctan_friction
+
             motor = data.theta_fast / data.ratio                                     # m of cable
             lead = motor_lead(motor, bands)
             acc = np.gradient(np.gradient(lead, data.dt, axis=0), data.dt, axis=0)
             fast = data.ratio ** 2 * data.params.actuation.I_a * acc
+            fs = np.asarray(data.params.friction.f_s, dtype=float)
+            if np.any(fs > 0):
+                # the drum's speed through the same low-pass as the encoders' (parallel filtering)
+                prep = data.prep
+                smooth = lowpass(lead, prep.motor_rate_hz, prep.cutoffs["motors"].hz, data.settings.filter_order)
+                drum = data.theta_dot_fast - data.ratio * np.gradient(smooth, data.dt, axis=0)
+                cs = data.params.friction.c_s
+                fast = fast + arctan_friction(data.theta_dot_fast, cs, fs) - arctan_friction(drum, cs, fs)
             return fast, data.to_slow(fast)
         return data.cached(("backlash force", tuple(np.round(bands, 9))), compute)
 

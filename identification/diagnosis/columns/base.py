@@ -307,6 +307,11 @@ class EffectColumns:
         return params
 
     @classmethod
+    def shape_violation(cls, shape: dict) -> str:
+        """'' when the searched ``shape`` is one this effect can take, else why not (default: any)."""
+        return ""
+
+    @classmethod
     def sign_violation(cls, values: dict, sigmas: dict) -> str:
         """'' when every clearly non-zero magnitude of a signed column is >= 0, else why not."""
         for col in cls.columns:

@@ -12,6 +12,7 @@ from identification.diagnosis.columns.base import EffectColumns, Shape
 
 __all__ = ["PretensionColumns", "PRETENSION_RANGE"]
 
+
 #: Search range of the rest elongation of each cable (m): 1.5 mm (the blind magnitude) x 1.25 plus
 #: margin above, and a slack cable (negative offset) below.
 PRETENSION_RANGE = (-1e-3, 5e-3)
@@ -29,6 +30,19 @@ class PretensionColumns(EffectColumns):
     def fit_elongation_offset(cls, shape: dict, n_cables: int) -> np.ndarray:
         """x_0 (n_cables,) m from the shape keys ``x0_<i>`` (1-based)."""
         return cls.shapes[0].per_cable_values(shape, n_cables)
+
+    @classmethod
+    def shape_violation(cls, shape: dict) -> str:
+        """A rest elongation on a bound of :data:`PRETENSION_RANGE` (within 1 % of its width):
+        the best offset lies outside what a rest elongation can be, so the gain comes from another
+        form (a cable's own hysteresis or creep pin x_0 at -1 mm on the generator's logs; its
+        encoder offsets, 2.4-3.8 mm, stay inside)."""
+        lo, hi = PRETENSION_RANGE
+        tol = 0.01 * (hi - lo)
+        for key, v in sorted(shape.items()):
+            if key.startswith("x0_") and not lo + tol < v < hi - tol:
+                return f"fitted x0({key[3:]}) = {1e3 * v:.2f} mm on a bound of its range: not a {cls.effect}"
+        return ""
 
     @classmethod
     def to_plant(cls, params, values, shape):
