@@ -53,6 +53,22 @@ def test_clean_multisine_log_gives_none(tmp_path):
     assert diag.verdict in OK, diag.to_dict()["margins"]
 
 
+def test_clean_half_speed_identification_run_gives_none(tmp_path):
+    """The x0.5 identification run of law 1 (42.5 s) whose alpha_hat of the top joint drifted with
+    time (|rho| 0.35, `unexplained`) while eq (35) was integrated at every 4th encoder sample:
+    integrated at every sample, its errors no longer follow time."""
+    from controllers.parallel import RunSpec, run_one
+
+    path = str(tmp_path / "identification-x0.5.mcap")
+    run_one(RunSpec("identification law 1", default_params(), law=1, trajectory="identification",
+                    duration_scale=0.5, seed=0, log_path=path))
+    diag = diagnose_log(path, settings=SETTINGS)
+    assert diag.verdict in OK, diag.to_dict()["margins"]
+    err = diag.final.alpha_hat_vs_camera
+    rho = [abs(np.corrcoef(err.t, err.error_deg[:, j])[0, 1]) for j in range(err.error_deg.shape[1])]
+    assert max(rho) < 0.25, rho
+
+
 def test_margins_agree_with_the_decisions(control_test_diag):
     """Two computations of one decision: the significance tests and the sign of their margins."""
     d = control_test_diag
