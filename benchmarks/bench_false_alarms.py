@@ -92,6 +92,7 @@ def _one(job_and_dir):
                         "best_candidate": None if top is None else top.term.name,
                         "best_improvement": None if top is None else top.improvement,
                         "leftover": [x.describe() for x in diag.leftover.found[:2]] if diag.leftover else [],
+                        "not_named": [n for n in diag.notes if "but is not named" in n],
                         "t_sim": t_sim, "t_diag": time.perf_counter() - t0})
         return out
 

@@ -53,6 +53,22 @@ def test_clean_multisine_log_gives_none(tmp_path):
     assert diag.verdict in OK, diag.to_dict()["margins"]
 
 
+def test_clean_half_speed_identification_run_gives_none(tmp_path):
+    """The x0.5 identification run of law 1 (42.5 s) whose alpha_hat of the top joint drifted with
+    time (|rho| 0.35, `unexplained`) while eq (35) was integrated at every 4th encoder sample:
+    integrated at every sample, its errors no longer follow time."""
+    from controllers.parallel import RunSpec, run_one
+
+    path = str(tmp_path / "identification-x0.5.mcap")
+    run_one(RunSpec("identification law 1", default_params(), law=1, trajectory="identification",
+                    duration_scale=0.5, seed=0, log_path=path))
+    diag = diagnose_log(path, settings=SETTINGS)
+    assert diag.verdict in OK, diag.to_dict()["margins"]
+    err = diag.final.alpha_hat_vs_camera
+    rho = [abs(np.corrcoef(err.t, err.error_deg[:, j])[0, 1]) for j in range(err.error_deg.shape[1])]
+    assert max(rho) < 0.25, rho
+
+
 def test_margins_agree_with_the_decisions(control_test_diag):
     """Two computations of one decision: the significance tests and the sign of their margins."""
     d = control_test_diag
@@ -139,3 +155,74 @@ def test_reversals_ignore_noise_around_zero():
     rng = np.random.default_rng(1)
     assert reversals(0.05 * rng.standard_normal(t.size), 0.2) == 0
     assert reversals(np.sin(2 * np.pi * 0.5 * t) + 0.05 * rng.standard_normal(t.size), 0.2) == 9
+
+
+# ------------------------------------------------------------- what the data cannot separate
+
+def test_explained_share_is_the_angle_to_the_baseline_span():
+    """Two computations of one angle: the projection's R^2 and scipy's principal angle."""
+    from scipy.linalg import subspace_angles
+
+    from identification.diagnosis.statistics import explained_share
+
+    rng = np.random.default_rng(4)
+    B = rng.standard_normal((400, 3)) * [1.0, 50.0, 0.01]          # columns of very different scales
+    for mix in (0.0, 0.3, 3.0, 30.0):
+        c = B @ [1.0, 0.02, 100.0] * mix + rng.standard_normal(400)
+        r2, coef = explained_share(B, c)
+        angle = float(subspace_angles(B, c[:, None])[0])
+        assert r2 == pytest.approx(np.cos(angle) ** 2, abs=1e-9)
+    assert explained_share(B, B[:, 1] * 3.0)[0] == pytest.approx(1.0)
+    assert explained_share(B, np.zeros(400))[0] == 0.0
+
+
+@pytest.fixture(scope="module")
+def collinear_log(tmp_path_factory):
+    """A clean 24 s random multisine (seed 1) on which cables 2-4 stay within 9-12 N of tension:
+    a rest elongation of cable 3 (R^2 0.975 against its k and lambda) passes every test there."""
+    spec = make_spec("none", 1)
+    path = tmp_path_factory.mktemp("collinear") / "multisine-24s.mcap"
+    return str(simulate(path, spec, 1, excitation=Multisine.draw(spec.params, 1, duration=24.0)))
+
+
+def _pretension(diag):
+    return next(c for c in diag.steps[0].candidates if c.term.name == "pretension")
+
+
+def test_a_rest_elongation_on_a_cable_without_tension_range_is_not_named(collinear_log):
+    diag = diagnose_log(collinear_log, settings=SETTINGS)
+    assert diag.verdict in OK, diag.notes
+    c = _pretension(diag)
+    assert c.passes_tests and c.refused and not c.significant
+    (x,) = c.inseparable
+    assert x.where == "cable 3" and x.unsupported and {"k(3)", "lambda(3)"} <= set(x.partners)
+    # the tension range is read from the tension, not from y_C (the friction's flips widen that)
+    e = diag.excitation
+    assert e.force_hi[2] - e.force_lo[2] < SETTINGS.support.min_tension_span
+    line = next(g.describe() for g in diag.gaps if g.where == "cable 3")
+    assert line.startswith("cable 3 stays between") and "k(3)" in line and "record moves that pull it to" in line
+    assert any(n.startswith("pretension passes its tests") and "x0(3) on cable 3" in n for n in diag.notes)
+    out = diag.to_dict()["steps"][0]["candidates"]
+    sep = next(d for d in out if d["effect"] == "pretension")
+    assert sep["separable"] is False and sep["separability"][0]["parameter"] == "x0(3)"
+    assert sep["separability"][0]["variance_inflation"] > 10 and c.margins["separability"] == -np.inf
+
+
+def test_conditioning_bound_refuses_a_collinear_candidate_and_only_it(collinear_log):
+    """Without the tension gap (min_tension_span lowered), the R^2 bound alone: above 0.975 the
+    rest elongation is named, below it it is refused with a one-line conditioning gap."""
+    def run(max_explained):
+        s = dataclasses.replace(SETTINGS, support=dataclasses.replace(SETTINGS.support, min_tension_span=5.0,
+                                                                      max_explained=max_explained))
+        return diagnose_log(collinear_log, settings=s)
+
+    named = run(0.99)
+    assert named.verdict == "pretension" and _pretension(named).separable
+    refused = run(0.95)
+    assert refused.verdict in OK
+    c = _pretension(refused)
+    assert c.refused and 0.95 < c.inseparable[0].explained < 0.99 and not c.inseparable[0].unsupported
+    assert -1 < c.margins["separability"] < 0
+    line = next(g for g in refused.gaps if g.kind == "conditioning").describe()
+    assert line.startswith("cable 3 stays between") and "x0(3) (pretension) cannot be separated from k(3)" in line
+    assert "% of its column, 95 % at most" in line and "record moves that pull it to" in line

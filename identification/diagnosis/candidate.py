@@ -7,10 +7,45 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.diagnosis.candidates import Fit, Term
+from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import located_comparison, search_shape, shape_grid
-from identification.diagnosis.statistics import block_scores, in_band, score
+from identification.diagnosis.support import excitation_summary, log_gaps, separability_gap, unsupported_items
+from identification.diagnosis.statistics import (block_scores, clearly_nonzero, explained_share, in_band, margin_ratio,
+                                                 score)
+
+
+@dataclass(frozen=True)
+class Separability:
+    """How well the data separate one parameter of a candidate from the step's baseline: the share
+    ``explained`` (R^2) of its weighted regressor column on the training folds that the baseline's
+    columns already explain (:func:`~identification.diagnosis.statistics.explained_share`; for a
+    searched shape parameter the column is the derivative of the weighted residuals with respect to
+    it), the baseline parameters that explain most of it (``partners``), and whether it ``carries``
+    the candidate (a clearly non-zero magnitude, or a searched magnitude such as a rest elongation
+    or a delay: the parameters the verdict would rest on)."""
+
+    name: str
+    explained: float
+    partners: tuple
+    carries: bool
+    where: str = "log"             # the cable or joint it acts on ("cable 3", "joint 2"), else "log"
+    unsupported: bool = False      # that cable or joint has a gap that leaves the candidate without support
+
+    @property
+    def inflation(self) -> float:
+        """Variance inflation against the baseline, 1 / (1 - R^2)."""
+        return 1.0 / max(1.0 - self.explained, 1e-300)
+
+    @property
+    def angle_deg(self) -> float:
+        """Angle between its column and the baseline's span (deg)."""
+        return float(np.degrees(np.arcsin(np.sqrt(max(1.0 - self.explained, 0.0)))))
+
+    def to_dict(self) -> dict:
+        return {"parameter": self.name, "where": self.where, "explained_by_baseline": self.explained,
+                "variance_inflation": self.inflation, "angle_deg": self.angle_deg, "partners": list(self.partners),
+                "carries_the_candidate": self.carries, "gap_where_it_acts": self.unsupported}
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +68,9 @@ class CandidateScore:
     margins: dict = None           # distance to each threshold (statistics.Comparison.margins)
     margin: float = float("nan")   # the decision's margin in borderline bands (statistics.in_band)
     alpha: float = float("nan")    # the level its p values are held to (alpha / candidates of the step)
+    separability: tuple = ()       # Separability of each parameter against the step's baseline
+    max_explained: float = 1.0     # the share of a carrying parameter's column the baseline may explain
+    passes_tests: bool = False     # improvement, both p values and the sign pass (separable or not)
 
     @property
     def fit(self) -> Fit | None:
@@ -49,7 +87,42 @@ class CandidateScore:
                 "p_train_F": self.p_train, "added_parameters": self.added_params, "physical_sign": self.valid,
                 "significant": self.significant, "shape": dict(self.term.shape), "note": self.note,
                 "alpha": self.alpha, "margins": self.margins or {}, "margin_in_bands": self.margin,
-                "borderline": self.borderline}
+                "borderline": self.borderline, "separability": [x.to_dict() for x in self.separability],
+                "separable": self.separable, "max_explained_by_baseline": self.max_explained}
+
+    @property
+    def inseparable(self) -> tuple:
+        """The parameters it rests on that the data cannot separate from the baseline: the
+        baseline's columns explain them beyond ``max_explained``, or they act on a cable or joint
+        whose gap leaves the candidate without support there."""
+        return tuple(x for x in self.separability
+                     if x.carries and (x.explained > self.max_explained or x.unsupported))
+
+    @property
+    def refused(self) -> bool:
+        """It passes every test but the data cannot separate it from the baseline: not named."""
+        return self.passes_tests and not self.separable
+
+    def refusal(self, gaps, summary, support) -> tuple[str, tuple]:
+        """Why a refused candidate is not named (one line) and the :class:`~identification.
+        diagnosis.support.Gap` s that say what is missing and what to record: the log's gap where
+        a parameter acts, else the conditioning gap of :func:`~identification.diagnosis.support.
+        separability_gap`."""
+        lines, out = [], []
+        for x in self.inseparable:
+            lines.append(f"{x.name} on {x.where}: {100 * x.explained:.1f} % of its column explained by "
+                         f"{', '.join(x.partners) or 'the baseline'}" + (" (a gap there)" if x.unsupported else ""))
+            here = [g for g in gaps if g.where == x.where and unsupported_items((g,), self.term.name)]
+            out += here if x.unsupported and here else [
+                separability_gap(self.term.name, x.name, x.where, x.explained, x.partners, summary, support)]
+        note = (f"{self.term.name} passes its tests (improvement {100 * self.improvement:.1f} %) but is not named: "
+                "the data cannot separate it from the baseline (" + "; ".join(lines) + ")")
+        return note, tuple(out)
+
+    @property
+    def separable(self) -> bool:
+        """The data separate every parameter it rests on from the baseline."""
+        return not self.inseparable
 
     @property
     def borderline(self) -> bool:
@@ -64,6 +137,87 @@ def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
     why = term.identification.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
     why = why or term.identification.shape_violation(dict(term.shape))
     return not why, why
+
+
+def _shape_names(term: Term) -> dict[str, tuple[str, float | None]]:
+    """Shape key -> (report name, profile step) of ``term``'s shape: ``x0(3)`` for a per-cable key
+    ``x0_3``, the key itself otherwise."""
+    out = {}
+    for key, _ in term.shape:
+        sh = next((h for h in term.identification.shapes if h.per_cable and key.startswith(h.name + "_")), None)
+        if sh is not None:
+            out[key] = (f"{sh.name}({key[len(sh.name) + 1:]})", sh.profile_step)
+        else:
+            sh = next((h for h in term.identification.shapes if h.name == key), None)
+            out[key] = (key, None if sh is None else sh.profile_step)
+    return out
+
+
+def _where(term: Term, name: str) -> str:
+    """The cable or joint a parameter of ``term`` acts on: "cable 3" for ``x0(3)`` or ``c_v(3)``,
+    "joint 2" for ``tau_j(2)`` or ``dk(2L)``, "log" for one acting everywhere."""
+    if "(" not in name:
+        return "log"
+    index = name.split("(")[1].rstrip(")LR")
+    col = next((c for c in term.identification.columns if c.symbol == name.split("(")[0]), None)
+    return f"{'joint' if col is not None and col.per in ('joint', 'spring') else 'cable'} {index}"
+
+
+def separability(ctx: StepContext, term: Term, fit: Fit) -> tuple[Separability, ...]:
+    """Per parameter of ``term`` (fitted in ``fit`` on top of the step's baseline), how much of
+    its column the baseline's columns explain on the training folds (:class:`Separability`).
+
+    The linear parameters' columns are those of the candidate's last weighted pass; a searched
+    shape parameter's column is the change of the weighted residuals (linear values held) over a
+    small step of it (its ``profile_step``, else 1e-3 of its value), inward from a bound.  A
+    candidate whose own magnitudes are linear rests on those; one without linear columns (a rest
+    elongation, a delay, a dead band) rests on its searched values."""
+    data, train = ctx.data, ctx.split.train
+    try:
+        full = fit_model(data, fit.model, train, ctx.scales, fit.state, iterations=1, keep_rows=True)
+    except ValueError:
+        return ()
+    W, Y = full.rows
+    base = set(ctx.base.fit.names)
+    ib = [i for i, n in enumerate(full.names) if n in base]
+    B = W[:, ib]
+    base_names = [full.names[i] for i in ib]
+    own = {col.symbol for col in term.identification.columns}
+    cols, carries = {}, {}
+    for sym in own:
+        idx = [i for i, n in enumerate(full.names) if n not in base and n.split("(")[0] == sym]
+        keep = clearly_nonzero(full.value[idx], full.sigma[idx]) if idx else []
+        for i, k in zip(idx, keep):
+            cols[full.names[i]], carries[full.names[i]] = W[:, i], bool(k)
+    r0 = Y - W @ full.value
+    bounds = {h.name: h.bounds for h in term.identification.shapes}
+    for key, (label, step) in _shape_names(term).items():
+        v = term.get(key)
+        h = step or 1e-3 * max(abs(v), 1e-6)
+        lo, hi = bounds.get(label.split("(")[0]) or (-np.inf, np.inf)
+        h = -h if v + h > hi else h
+        moved = Term(term.name, tuple((k, (x + h if k == key else x)) for k, x in term.shape))
+        try:
+            other = fit_model(data, fit.model.without(term.name).plus(moved), train, ctx.scales, fit.state,
+                              iterations=1, keep_rows=True)
+        except ValueError:
+            continue
+        if other.names != full.names:
+            continue
+        W2, Y2 = other.rows
+        cols[label] = ((Y2 - W2 @ full.value) - r0) / h
+        carries[label] = not own and v != 0
+    gaps = data.cached(("support gaps", ctx.settings.support),
+                       lambda: log_gaps(excitation_summary(data), data.n, ctx.settings.support))
+    unsupported = unsupported_items(gaps, term.name)
+    out = []
+    for name, c in cols.items():
+        r2, coef = explained_share(B, c)
+        order = np.argsort(-np.abs(coef))[:2]
+        where = _where(term, name)
+        out.append(Separability(name, r2, tuple(base_names[i] for i in order if abs(coef[i]) > 0.1), carries[name],
+                                where, where in unsupported))
+    return tuple(out)
 
 
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
@@ -99,9 +253,19 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     valid, why = sign_ok(fit, term)
     margins = ctx.candidate_margins(cmp)
     s = ctx.settings
+    sep = separability(ctx, term, fit)
+    bound = s.support.max_explained
+    carried = [x for x in sep if x.carries]
+    if carried:
+        # the share of its column the baseline leaves, against the least it must leave; a gap
+        # where it acts is no matter of degree
+        margins["separability"] = (-math.inf if any(x.unsupported for x in carried)
+                                   else margin_ratio(1.0 - max(x.explained for x in carried), 1.0 - bound))
+    separable = not any(x.explained > bound or x.unsupported for x in carried)
+    passes = valid and ctx.candidate_significant(cmp)
     return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales, ctx.data.n), cmp.improvement,
                           cmp.holdout_improvement, ratio, cmp.p_holdout, cmp.p_train, valid,
-                          valid and ctx.candidate_significant(cmp), why, margins,
+                          passes and separable, why, margins,
                           in_band(margins, s.borderline, s.borderline_decades) if valid else -np.inf,
-                          ctx.alpha_candidate)
+                          ctx.alpha_candidate, sep, bound, passes)
 

@@ -236,6 +236,7 @@ class Fit:
     n_params: int
     delay: float = 0.0
     notes: tuple = ()
+    rows: tuple | None = None      # (W (r, p), Y (r,)): the weighted training rows, when asked (keep_rows)
 
     def group(self, symbol: str) -> np.ndarray:
         idx = [i for i, n in enumerate(self.names) if n.split("(")[0] == symbol]
@@ -281,7 +282,7 @@ def initial_state(data: MeasuredData) -> FitState:
 
 
 def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: np.ndarray,
-              state: FitState | None = None, *, iterations: int = 3) -> Fit:
+              state: FitState | None = None, *, iterations: int = 3, keep_rows: bool = False) -> Fit:
     """Fit ``model`` on the training samples ``train`` (S,) bool by weighted least squares.
 
     ``scales`` (N + C,): the residual scale of each channel (torque N m per joint, elongation m per
@@ -290,7 +291,8 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
     each residual type, then over the two types.
     ``state`` seeds the tension and stiffness estimates (default :func:`initial_state`).  Raises
     ValueError (from :func:`identification.least_squares.solve_weighted`) when a parameter is not
-    identifiable on these data.
+    identifiable on these data.  ``keep_rows``: the fit keeps the weighted rows (W, Y) of its last
+    pass (``Fit.rows``), e.g. to measure how its columns overlap.
     """
     n, C, S = data.n, data.C, data.S
     scales = np.asarray(scales, dtype=float)
@@ -360,6 +362,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
             value, sigma = ls.value, ls.sigma
         else:
             value = sigma = np.zeros(0)
+            W, Y = np.zeros((0, 0)), np.zeros(0)
         # tension estimate for the next pass: y_C minus the fitted motor forces (the filter chain
         # is linear, so the slow-grid tension is the same combination of the slow columns)
         t_fast, t_slow = y_fast.copy(), y_slow.copy()
@@ -369,8 +372,8 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         if elastic:
             k_hat = np.maximum(_pick(names, value, "k", C), 1.0)
             lam_hat = np.maximum(_pick(names, value, "lambda", C, 0.0), 0.0)
-        fit = (value, sigma, names, units, AT, AC, stiff, t_fast, t_slow)
-    value, sigma, names, units, AT, AC, stiff, t_fast, t_slow = fit
+        fit = (value, sigma, names, units, AT, AC, stiff, t_fast, t_slow, (W, Y))
+    value, sigma, names, units, AT, AC, stiff, t_fast, t_slow, rows = fit
     res_T = yT - AT @ value if len(value) else yT.copy()
     if elastic:
         res_t = y_slow - AC @ value
@@ -381,7 +384,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         tension = None
     new_state = FitState(t_fast, t_slow, k_hat, lam_hat)
     return Fit(model, tuple(names), tuple(units), value, sigma, res_T, res_C, tension, t_slow, new_state,
-               len(value), delay, tuple(notes))
+               len(value), delay, tuple(notes), rows if keep_rows else None)
 
 
 def _pick(names, value, symbol, C, default=None):

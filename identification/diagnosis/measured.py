@@ -81,6 +81,7 @@ class MeasuredData:
             fs0 = np.zeros(self.C)
         self.f_s0 = fs0
         t_est = y - a * fs0
+        self.tension0 = t_est        # (S, C) N: that first tension estimate (what the log's tension ranges are read from)
         slack = t_est < slack_threshold
         pad = int(math.ceil(slack_margin_s * prep.rate_hz))
         if pad > 0 and slack.any():

@@ -63,7 +63,8 @@ def format_summary(diag) -> str:
     """A few lines for the terminal: verdict, findings and their gains."""
     model = diag.baseline.description if diag.baseline is not None else diag.model.describe()
     lines = [f"diagnosis of {diag.source or 'data'} from the model: {model}",
-             f"verdict: {diag.verdict}" + (" (borderline: " + margin_text(diag) + ")" if diag.borderline else "")]
+             f"verdict: {diag.verdict}" + (f" ({'borderline' if diag.borderline else 'margins'}: {margin_text(diag)})"
+                                            if margin_text(diag) else "")]
     if diag.gaps:
         lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else ":"))
         lines += [f"      {g.describe()}" for g in diag.gaps]
@@ -71,7 +72,8 @@ def format_summary(diag) -> str:
         ev = f.evidence
         where = f" on {_where(f)}" if _where(f) else ""
         lines.append(f"  step {f.step}: {f.effect}{where}: held-out (cross-validated) score "
-                     f"-{100 * ev.improvement:.1f} % (p = {ev.p_holdout:.2g}, F-test p = {ev.p_train:.2g})")
+                     f"-{100 * ev.improvement:.1f} % (p = {ev.p_holdout:.2g}, F-test p = {ev.p_train:.2g}; margin "
+                     f"{ev.margin:+.2f} bands" + (", borderline)" if ev.borderline else ")"))
         lines.append(f"      {_param_text(f.parameters)}")
         before, after = f.gain.before.residual_rms_crossvalidated, f.gain.after.residual_rms_crossvalidated
         for key, label, scale, unit in _RESIDUALS:

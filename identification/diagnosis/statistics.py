@@ -15,7 +15,7 @@ from scipy import stats
 
 __all__ = ["mean_square", "channel_weights", "score", "block_scores", "Chunked", "chunk_reductions", "wilcoxon_p",
            "improvement", "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome",
-           "margin_ratio", "decades_below", "in_band"]
+           "margin_ratio", "decades_below", "in_band", "explained_share"]
 
 
 def clearly_nonzero(value, sigma) -> np.ndarray:
@@ -159,3 +159,22 @@ def encompassing_outcome(a_adds: bool, b_adds: bool) -> str:
     if not a_adds and not b_adds:
         return "both"
     return "a"
+
+
+def explained_share(base: np.ndarray, column: np.ndarray) -> tuple[float, np.ndarray]:
+    """How much of a regressor ``column`` (r,) the span of the ``base`` columns (r, q) already
+    explains, on the same (weighted) rows: R^2 = |P c|^2 / |c|^2 with P the projection on that
+    span (uncentred: the fits have no intercept), so the variance inflation of c against the base
+    is 1 / (1 - R^2) and the angle between c and the span arcsin(sqrt(1 - R^2)).  Also the
+    coefficients (q,) of the projection on the unit-norm base columns: which of them explain it.
+    A zero column is explained by nothing (R^2 = 0)."""
+    c = np.asarray(column, dtype=float)
+    B = np.asarray(base, dtype=float)
+    cc = float(c @ c)
+    if cc <= 0 or B.shape[1] == 0:
+        return 0.0, np.zeros(B.shape[1])
+    norms = np.linalg.norm(B, axis=0)
+    Bs = B / np.where(norms > 0, norms, 1.0)
+    coef, *_ = np.linalg.lstsq(Bs, c / np.sqrt(cc), rcond=None)
+    left = c / np.sqrt(cc) - Bs @ coef
+    return float(np.clip(1.0 - left @ left, 0.0, 1.0)), coef
