@@ -271,11 +271,12 @@ def test_a_located_term_has_its_joints_columns_and_its_p_values_count_the_joints
         one = cols.design(data, {**shape, "joint": 7}, ctx).torque
         own = [nm for nm, _ in cols.column_names(n, C, {**shape, "joint": 7})]
         assert own == [nm for nm in names if nm.split("(")[1].rstrip("LR)") == "7"]
-        np.testing.assert_array_equal(one, every[:, :, [names.index(nm) for nm in own]])
-        values = {cols.columns[0].symbol: np.arange(1.0, len(own) + 1.0)}
-        effect = cols.to_plant(p, values, {**shape, "joint": 7})[1]
+        at = [names.index(nm) for nm in own]
+        np.testing.assert_array_equal(one, every[:, :, at])
+        values = np.arange(1.0, len(own) + 1.0)
+        effect = cols.to_plant(p, {cols.columns[0].symbol: values}, {**shape, "joint": 7})[1]
         spread = np.asarray(effect.dk if name == "spring_error" else effect.torque)
-        assert np.count_nonzero(spread) == len(own) and list(spread[[names.index(nm) for nm in own]]) == list(values[cols.columns[0].symbol])
+        assert np.count_nonzero(spread) == len(own) and list(spread[at]) == list(values)
     cmp = Comparison(0.05, 0.05, 1e-4, 2e-3)
     located = located_comparison(cmp, Term("spring_error", (("joint", 3),)), n)
     assert (located.p_holdout, located.p_train) == pytest.approx((2 * n * 1e-4, 2 * n * 2e-3))

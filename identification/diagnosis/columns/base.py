@@ -240,8 +240,8 @@ class EffectColumns:
     def places(cls, shape: dict, n_joints: int) -> int:
         """The number of tests a term with ``shape`` stands for (its p values are multiplied by it:
         Bonferroni).  An effect with :attr:`locates_joint` is tried in two forms, each at half the
-        candidate's level: every joint at once (2), then, when that form does not pass, each of
-        the N joints alone (2 N); 1 for every other effect."""
+        candidate's level: every joint at once (2), then, when that form's training F-test does not
+        pass, each of the N joints alone (2 N); 1 for every other effect."""
         if not cls.locates_joint:
             return 1
         return 2 * n_joints if cls.joint_of(shape) is not None else 2
