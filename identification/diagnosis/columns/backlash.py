@@ -79,7 +79,6 @@ class BacklashColumns(EffectColumns):
             return None
 
         def compute():
-            from identification.preprocessing import lowpass
             from neck_sim.effects.dry_friction import arctan_friction
 
             motor = data.theta_fast / data.ratio                                     # m of cable
@@ -89,9 +88,7 @@ class BacklashColumns(EffectColumns):
             fs = np.asarray(data.params.friction.f_s, dtype=float)
             if np.any(fs > 0):
                 # the drum's speed through the same low-pass as the encoders' (parallel filtering)
-                prep = data.prep
-                smooth = lowpass(lead, prep.motor_rate_hz, prep.cutoffs["motors"].hz, data.settings.filter_order)
-                drum = data.theta_dot_fast - data.ratio * np.gradient(smooth, data.dt, axis=0)
+                drum = data.theta_dot_fast - data.ratio * np.gradient(data.motor_lowpass(lead), data.dt, axis=0)
                 cs = data.params.friction.c_s
                 fast = fast + arctan_friction(data.theta_dot_fast, cs, fs) - arctan_friction(drum, cs, fs)
             return fast, data.to_slow(fast)
