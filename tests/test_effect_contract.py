@@ -187,8 +187,9 @@ def test_native_kernel_is_the_python_reference(cls, params, rng):
 
 
 def _fake_data(params, rng, S=60):
-    """The data protocol's members, exactly, on random states (no filter: to_slow and motor_lowpass = identity, the
-    control rate is the slow grid), and the elongations x (S, C) m of those states."""
+    """The data protocol's members, exactly, on random states (no filter: to_slow and
+    motor_lowpass = identity, the control rate is the slow grid), and the elongations x (S, C) m
+    of those states."""
     n, C = params.n_joints, params.n_cables
     alpha = rng.uniform(-0.4, 0.4, (S, n))
     t = np.arange(S) * 0.01
