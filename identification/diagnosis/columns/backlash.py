@@ -72,8 +72,8 @@ class BacklashColumns(EffectColumns):
         friction of eq (37) at the drum's speed, + f_s [g(theta_dot) - g(theta_dot - (R/r_d)
         d(lead)/dt)] with g(w) = (2/pi) arctan(c_s w) and the nominal f_s, c_s (the friction acts
         where the drum turns; across a reversal the encoder crosses the band and its speed leads
-        the drum's by a burst of band x R/r_d rad, the play's strongest trace: 15 N of force for
-        tens of ms at each reversal, against the +-band/2 of elongation)."""
+        the drum's by a burst of band x R/r_d rad, the play's strongest trace: up to f_s of
+        force while the two speeds differ, against the +-band/2 of elongation)."""
         bands = cls.bands(shape, data.C)
         if not np.any(bands > 0):
             return None
