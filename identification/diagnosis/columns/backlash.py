@@ -37,8 +37,8 @@ def motor_lead(motor: np.ndarray, band: np.ndarray) -> np.ndarray:
 class BacklashColumns(EffectColumns):
     """The band (m of cable) per cable, searched on :data:`BACKLASH_RANGE` cable by cable: the
     cable law then uses x_c - lead(theta) (:func:`motor_lead` from the encoders, through the
-    observations' filter chain), and the motor inertia's force of eq (37) from the drum's
-    acceleration (:meth:`fit_force_offset`)."""
+    observations' filter chain), and eq (37)'s motor inertia and dry friction from the
+    drum's acceleration and speed (:meth:`fit_force_offset`)."""
 
     effect: ClassVar[str] = Backlash.name
     shapes: ClassVar[tuple] = (Shape("band", "m", per_cable=True, bounds=BACKLASH_RANGE, profile_step=2e-5),)
