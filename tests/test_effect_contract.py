@@ -187,8 +187,9 @@ def test_native_kernel_is_the_python_reference(cls, params, rng):
 
 
 def _fake_data(params, rng, S=60):
-    """The data protocol's members, exactly, on random states (no filter: to_slow = identity, the
-    control rate is the slow grid), and the elongations x (S, C) m of those states."""
+    """The data protocol's members, exactly, on random states (no filter: to_slow and
+    motor_lowpass = identity, the control rate is the slow grid), and the elongations x (S, C) m
+    of those states."""
     n, C = params.n_joints, params.n_cables
     alpha = rng.uniform(-0.4, 0.4, (S, n))
     t = np.arange(S) * 0.01
@@ -204,6 +205,7 @@ def _fake_data(params, rng, S=60):
         alpha=alpha, alpha_dot=rng.normal(0, 1, (S, n)), alpha_ddot=rng.normal(0, 5, (S, n)),
         Z=an.transmission_matrix(alpha, params), x_dot=rng.normal(0, 5e-4, (S, C)),
         theta_fast=rng.normal(0, 2, (S, C)), theta_dot_fast=rng.normal(0, 20, (S, C)), to_slow=lambda v: v,
+        motor_lowpass=lambda v: v,
         cached=cached)
     assert set(vars(d)) == PROTOCOL
     return d, rng.uniform(1e-3, 3e-3, (S, C))

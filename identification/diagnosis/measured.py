@@ -107,12 +107,17 @@ class MeasuredData:
         self._common = prep.cutoffs["common"].hz
         self._motor_cut = prep.cutoffs["motors"].hz
 
+    def motor_lowpass(self, v: np.ndarray) -> np.ndarray:
+        """A control-rate signal (T, ...) through the encoders' low-pass (the motor cutoff), still
+        at the control rate: what theta_dot_fast went through."""
+        return lowpass(v, self.prep.motor_rate_hz, self._motor_cut, self.settings.filter_order)
+
     def to_slow(self, v: np.ndarray) -> np.ndarray:
         """A control-rate signal (T, ...) through prepare()'s chain: motor-cutoff low-pass,
         decimation, camera window, common-bandwidth low-pass, trimming -> (S, ...)."""
         prep, s = self.prep, self.settings
         n_grid, idx, keep = self._grid
-        v = lowpass(v, prep.motor_rate_hz, self._motor_cut, s.filter_order)
+        v = self.motor_lowpass(v)
         v = decimate(v, prep.decimation)[:n_grid][idx]
         if s.common_bandwidth and self._common < 0.5 * prep.rate_hz * 0.95:
             v = lowpass(v, prep.rate_hz, self._common, s.filter_order)

@@ -37,8 +37,8 @@ def motor_lead(motor: np.ndarray, band: np.ndarray) -> np.ndarray:
 class BacklashColumns(EffectColumns):
     """The band (m of cable) per cable, searched on :data:`BACKLASH_RANGE` cable by cable: the
     cable law then uses x_c - lead(theta) (:func:`motor_lead` from the encoders, through the
-    observations' filter chain), and the motor inertia's force of eq (37) from the drum's
-    acceleration (:meth:`fit_force_offset`)."""
+    observations' filter chain), and eq (37)'s motor inertia and dry friction from the
+    drum's acceleration and speed (:meth:`fit_force_offset`)."""
 
     effect: ClassVar[str] = Backlash.name
     shapes: ClassVar[tuple] = (Shape("band", "m", per_cable=True, bounds=BACKLASH_RANGE, profile_step=2e-5),)
@@ -72,14 +72,13 @@ class BacklashColumns(EffectColumns):
         friction of eq (37) at the drum's speed, + f_s [g(theta_dot) - g(theta_dot - (R/r_d)
         d(lead)/dt)] with g(w) = (2/pi) arctan(c_s w) and the nominal f_s, c_s (the friction acts
         where the drum turns; across a reversal the encoder crosses the band and its speed leads
-        the drum's by a burst of band x R/r_d rad, the play's strongest trace: 15 N of force for
-        tens of ms at each reversal, against the +-band/2 of elongation)."""
+        the drum's by a burst of band x R/r_d rad, the play's strongest trace: up to f_s of
+        force while the two speeds differ, against the +-band/2 of elongation)."""
         bands = cls.bands(shape, data.C)
         if not np.any(bands > 0):
             return None
 
         def compute():
-            from identification.preprocessing import lowpass
             from neck_sim.effects.dry_friction import arctan_friction
 
             motor = data.theta_fast / data.ratio                                     # m of cable
@@ -89,9 +88,7 @@ class BacklashColumns(EffectColumns):
             fs = np.asarray(data.params.friction.f_s, dtype=float)
             if np.any(fs > 0):
                 # the drum's speed through the same low-pass as the encoders' (parallel filtering)
-                prep = data.prep
-                smooth = lowpass(lead, prep.motor_rate_hz, prep.cutoffs["motors"].hz, data.settings.filter_order)
-                drum = data.theta_dot_fast - data.ratio * np.gradient(smooth, data.dt, axis=0)
+                drum = data.theta_dot_fast - data.ratio * np.gradient(data.motor_lowpass(lead), data.dt, axis=0)
                 cs = data.params.friction.c_s
                 fast = fast + arctan_friction(data.theta_dot_fast, cs, fs) - arctan_friction(drum, cs, fs)
             return fast, data.to_slow(fast)

@@ -71,6 +71,10 @@ class ColumnData(Protocol):
     theta_fast: np.ndarray      # (T, C) rad, the encoders at the control rate
     theta_dot_fast: np.ndarray  # (T, C) rad/s, their speed (motor cutoff only)
 
+    def motor_lowpass(self, v: np.ndarray) -> np.ndarray:
+        """A control-rate signal (T, ...) through the encoders' low-pass, at the control rate (T, ...)."""
+        ...
+
     def to_slow(self, v: np.ndarray) -> np.ndarray:
         """A control-rate signal (T, ...) through the observations' filter chain -> (S, ...)."""
         ...
