@@ -189,7 +189,17 @@ def _pretension(diag):
     return next(c for c in diag.steps[0].candidates if c.term.name == "pretension")
 
 
-def test_a_rest_elongation_on_a_cable_without_tension_range_is_not_named(collinear_log):
+@pytest.fixture
+def separability_alone(monkeypatch):
+    """The pretension's own bound rule switched off: on this log its rest elongation sits on the
+    -1 mm bound of its search range, which refuses the name before the separability check is
+    reached; these tests hold the separability check by itself."""
+    from identification.diagnosis.columns.pretension import PretensionColumns
+
+    monkeypatch.setattr(PretensionColumns, "shape_violation", classmethod(lambda cls, shape: ""))
+
+
+def test_a_rest_elongation_on_a_cable_without_tension_range_is_not_named(collinear_log, separability_alone):
     diag = diagnose_log(collinear_log, settings=SETTINGS)
     assert diag.verdict in OK, diag.notes
     c = _pretension(diag)
@@ -208,7 +218,7 @@ def test_a_rest_elongation_on_a_cable_without_tension_range_is_not_named(colline
     assert sep["separability"][0]["variance_inflation"] > 10 and c.margins["separability"] == -np.inf
 
 
-def test_conditioning_bound_refuses_a_collinear_candidate_and_only_it(collinear_log):
+def test_conditioning_bound_refuses_a_collinear_candidate_and_only_it(collinear_log, separability_alone):
     """Without the tension gap (min_tension_span lowered), the R^2 bound alone: above 0.975 the
     rest elongation is named, below it it is refused with a one-line conditioning gap."""
     def run(max_explained):
