@@ -22,7 +22,7 @@ from identification.output_error.intervals import Z95, jacobian_covariance
 from identification.output_error.misfit import cost_ratios, misfit_lines
 from identification.output_error.settings import OutputErrorSettings
 from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residuals
-from identification.output_error import _serial, rollouts as engine
+from identification.output_error import _serial, rollouts as engine, solver
 
 __all__ = ["OutputErrorSettings", "OutputErrorResult", "fit", "cost_at", "horizons"]
 
@@ -152,35 +152,25 @@ class _Diverged(ValueError):
 
 
 def _solve(ev: _Evaluator, measured, layout: Layout, x0, scale, s: OutputErrorSettings, max_nfev: int):
-    """One trust-region solve on ``measured``; (scipy result, residuals at its x)."""
-    from scipy.optimize import least_squares
-
+    """One Broyden Levenberg-Marquardt solve (:mod:`solver`) on ``measured``; (solution, residuals
+    at its x)."""
     ev.measured = measured
-    last = {}
     n = sum(e.theta.size + e.camera_alpha.size for e in measured)
-
-    def fun(x):
-        key = x.tobytes()
-        if key not in last:
-            (run,), (why,) = ev.runs([x])
-            last.clear()
-            if run is None:
-                ev.rejected.append(f"candidate {_short(layout, x)} rejected: {why}")
-                last[key] = None
-            else:
-                last[key] = np.concatenate([ev.residual(run)[k] for k in SIGNALS])
-        r = last[key]
-        if r is None:
-            return np.full(n, np.nan)
-        if ev.bar is not None:
-            ev.bar.set_postfix(cost=f"{0.5 * float(r @ r):.4g}")
-        return r
 
     def residual_of(run):
         return np.concatenate([ev.residual(run)[k] for k in SIGNALS])
 
-    def jac(x):
-        r = fun(x)
+    def fun(x):
+        (run,), (why,) = ev.runs([x])
+        if run is None:
+            ev.rejected.append(f"candidate {_short(layout, x)} rejected: {why}")
+            return np.full(n, np.nan)
+        r = residual_of(run)
+        if ev.bar is not None:
+            ev.bar.set_postfix(cost=f"{0.5 * float(r @ r):.4g}")
+        return r
+
+    def jac(x, r):
         h = s.rel_step * scale
         runs, reasons = ev.runs(x[None, :] + np.diag(h))
         J = np.empty((r.size, x.size))
@@ -198,9 +188,9 @@ def _solve(ev: _Evaluator, measured, layout: Layout, x0, scale, s: OutputErrorSe
     r0 = fun(x0)
     if not np.all(np.isfinite(r0)):
         raise _Diverged(ev.rejected[-1])
-    sol = least_squares(fun, x0, jac=jac, bounds=(layout.lower, layout.upper), x_scale=scale, method="trf",
-                        max_nfev=max_nfev, xtol=s.xtol, ftol=s.ftol, gtol=1e-12)
-    return sol, fun(sol.x)
+    sol = solver.solve(fun, jac, x0, layout.lower, layout.upper, scale, max_evaluations=max_nfev, xtol=s.xtol,
+                       ftol=s.ftol, r0=r0)
+    return sol, sol.r
 
 
 def horizons(duration_s: float, first_s: float, growth: float) -> list:
@@ -250,9 +240,9 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
                 spans.insert(i, 0.5 * (done + span))          # a shorter step from the last optimum
                 retries += 1
                 continue
-            x, done, retries, njev = sol.x, span, 0, njev + int(sol.njev or 0)
-            stages.append({"span_s": float(span), "rollouts": ev.rollouts, "status": str(sol.message),
-                           "converged": bool(sol.status != 0)})
+            x, done, retries, njev = sol.x, span, 0, njev + sol.njev
+            stages.append({"span_s": float(span), "rollouts": ev.rollouts, "status": sol.message,
+                           "converged": sol.converged})
             i += 1
     res = _split(r, measured)
     cov, _ = jacobian_covariance(sol.jac, r)
@@ -261,8 +251,8 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     notes = list(notes)
     from neck_sim.mjcf import integrator_for
 
-    if sol.status == 0:
-        notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} cost evaluations (--max-evaluations); "
+    if not sol.converged:
+        notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} trial steps (--max-evaluations); "
                      "the values and any misfit below are those of an unfinished fit")
     wanted = integrator_for(layout.plant(x)[0])
     if wanted != integrator:
