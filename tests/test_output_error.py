@@ -237,7 +237,7 @@ def test_model_file_errors_are_one_line(tmp_path):
 
 def test_cli_json_holds_output_error_beside_least_squares(logs, tmp_path, capsys):
     """`identify --method output-error`: text and JSON carry both methods (a fit cut short at 2
-    evaluations per span says it did not converge)."""
+    trial steps says it did not converge)."""
     from neck_sim.cli import main
 
     out = tmp_path / "id.json"
@@ -252,4 +252,4 @@ def test_cli_json_holds_output_error_beside_least_squares(logs, tmp_path, capsys
         rows = oe["parameters"][group]
         assert len(rows) == 4 and all(np.isfinite(r["value"]) and r["ci95"] > 0 for r in rows)
     assert oe["converged"] is False and oe["integrator"] == "implicitfast"
-    assert [s["span_s"] for s in oe["stages"]] == [2.0, 4.5]
+    assert oe["trial_steps"] == 2
