@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.output_error.intervals import Z95, jacobian_covariance
+from identification.output_error.intervals import Z95, hac_jacobian_covariance
 from identification.output_error.misfit import cost_ratios, misfit_lines
 from identification.output_error.settings import OutputErrorSettings
-from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residuals
+from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residual_samples, residuals
 from identification.output_error import _serial, rollouts as engine, solver
 
 __all__ = ["OutputErrorSettings", "OutputErrorResult", "fit", "cost_at", "choose_integrator"]
@@ -82,8 +82,9 @@ class OutputErrorResult:
                 "integrator": self.integrator, "status": self.status, "converged": self.converged,
                 "logs": list(self.logs),
                 "notes": list(self.notes), "trial_steps": self.trial_steps,
-                "ci95_method": "1.96 sigma, sigma from s^2 (J^T J)^-1 at the optimum (J of the noise-weighted "
-                               "residuals, Broyden-updated, s^2 their variance)"}
+                "ci95_method": "1.96 sigma, sigma from the Newey-West sandwich (J^T J)^-1 S (J^T J)^-1 at the "
+                               "optimum (J of the noise-weighted residuals, Broyden-updated; S the Bartlett long-run "
+                               "covariance of the per-sample scores)"}
 
 
 def _scales(layout: Layout, x0) -> np.ndarray:
@@ -219,7 +220,7 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
         sol = _solve(ev, layout, x, scale, s)
     x, r = sol.x, sol.r
     res = _split(r, measured)
-    cov, _ = jacobian_covariance(sol.jac, r)
+    cov, _ = hac_jacobian_covariance(sol.jac, r, *residual_samples(measured))
     sigma = np.sqrt(np.diag(cov))
     ratios = cost_ratios(res)
     notes = list(notes)

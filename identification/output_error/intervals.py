@@ -1,5 +1,8 @@
 """Confidence intervals from the Jacobian of the weighted residuals at the optimum.
 
+The fit reports the Newey-West sandwich (:func:`hac_jacobian_covariance`); the plain
+Gauss-Newton covariance below is its white-noise special case.
+
 Gauss-Newton's covariance: C = s^2 (J^T J)^-1 with s^2 = |r|^2 / (n - p), the residual variance
 per weighted sample (eq 50's form on the output-error residuals; 1 when the weights are the true
 noise).  sigma_i = sqrt(C_ii); the 95 % interval is value +- 1.96 sigma_i.  Their coverage over
@@ -11,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Z95", "jacobian_covariance", "coverage"]
+__all__ = ["Z95", "jacobian_covariance", "hac_jacobian_covariance", "coverage"]
 
 Z95 = 1.959963984540054
 
@@ -34,6 +37,23 @@ def jacobian_covariance(J, r) -> tuple[np.ndarray, float]:
     cov[np.ix_(ok, ok)] = s2 * inner / np.outer(norms[ok], norms[ok])
     cov[~ok, ~ok] = np.inf
     return cov, s2
+
+
+def hac_jacobian_covariance(J, r, rows, n_samples: int) -> tuple[np.ndarray, int]:
+    """(C (p, p), Bartlett bandwidth in samples): the Newey-West sandwich (J^T J)^-1 S (J^T J)^-1
+    of :func:`identification.uncertainty.hac_covariance` on the Jacobian J (n, p) and residuals
+    r (n,) of the weighted problem, ``rows`` (n,) each residual's sample index (0 .. n_samples-1,
+    motor samples; a camera frame counts at the motor sample it falls in).  The encoder residuals
+    are quantisation errors, white while a motor turns but one constant error while it rests, so
+    s^2 (J^T J)^-1 counts too many independent samples; the sandwich counts what the residuals'
+    autocorrelation allows.  Columns are scaled to unit norm first (their units differ by 1e4)."""
+    from identification.uncertainty import hac_covariance
+
+    J = np.asarray(J, dtype=float)
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    cov, L = hac_covariance(J / norms, np.asarray(r, dtype=float), np.asarray(rows), int(n_samples))
+    return cov / np.outer(norms, norms), L
 
 
 def coverage(z, names, groups=("f_s", "k", "lambda", "c_a")) -> dict:
