@@ -14,15 +14,16 @@ class OutputErrorSettings:
     """``integrator``: MuJoCo integrator for every rollout of the fit (None: ``integrator_for`` of
     the nominal constants, :func:`identification.output_error.fit.choose_integrator`); ``max_evaluations``: trial steps of the solver (each one rollout per
     experiment, besides the finite-difference Jacobians' p); ``rel_step``: finite-difference step
-    relative to the parameter scale; ``xtol``/``ftol``: the solver's relative tolerances on the
-    step and the cost (:mod:`identification.output_error.solver`); ``misfit_ratio``: see
+    relative to the parameter scale; ``xtol``: the solver's relative tolerance on the step;
+    ``ftol``: its absolute tolerance on the cost, half the chi-square of the noise-weighted
+    residuals (:mod:`identification.output_error.solver`); ``misfit_ratio``: see
     :mod:`identification.output_error.misfit`."""
 
     integrator: str | None = None
     max_evaluations: int = 30
     rel_step: float = 1e-5
     xtol: float = 1e-7
-    ftol: float = 1e-7
+    ftol: float = 0.01
     misfit_ratio: float = MISFIT_RATIO
 
     def __post_init__(self):
