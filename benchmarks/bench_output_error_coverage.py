@@ -5,7 +5,7 @@ few random poses (joint angles uniform within +-(40, 30, 20) deg, seeded) and st
 cycloidal moves of ``--move`` s and holds of ``--hold`` s; law 1 does not read the camera, so the
 random poses (not the plant seed alone) are what make the seeds' encoders differ.  The
 output-error fit (:func:`identification.output_error.fit.fit`, 16 parameters: f_s, k, lambda, c_a
-per cable) starts ``--off`` (3 %) off the truth in random directions, c_a at 1-51 N s/m, and its
+per cable) starts ``--off`` (3 %) off the truth in random directions, and its
 errors against the truth are counted in units of its sigma: the share within 1 sigma (target
 about 68 %) and within 1.96 sigma (the ci95, about 95 %), per group and overall, over the seeds
 whose fit converged (the others are listed as NOT CONVERGED and counted apart).
@@ -48,12 +48,11 @@ def simulate(path: str, seed: int, poses: int = 3, move_s: float = 1.5, hold_s: 
 
 
 def start(truth_x: np.ndarray, seed: int, off: float) -> np.ndarray:
-    """``off`` off the truth in random directions (seeded); c_a 1, 3, 51, 35 N s/m (the least
-    squares cannot see damping: the fit must find it from a poor start)."""
+    """``off`` off the truth in random directions (seeded), every parameter: coverage is a property
+    of the intervals at the optimum, measured apart from how far the solver reaches (from c_a at
+    1-3 N s/m, 4 of the first 11 seeds of 8 s runs did not converge or could not start)."""
     rng = np.random.default_rng(1000 + seed)
-    x0 = truth_x * (1 + off * rng.choice([-1.0, 1.0], truth_x.size))
-    x0[-4:] = [1.0, 3.0, 51.0, 35.0]
-    return x0
+    return truth_x * (1 + off * rng.choice([-1.0, 1.0], truth_x.size))
 
 
 def fit_seed(path: str, seed: int, off: float = 0.03):

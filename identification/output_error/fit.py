@@ -193,8 +193,9 @@ def _solve(ev: _Evaluator, layout: Layout, x0, scale, s: OutputErrorSettings):
     r0 = fun(x0)
     if not np.all(np.isfinite(r0)):
         raise ValueError(f"output-error: the start of the fit cannot be simulated ({ev.rejected[-1]})")
+    # near the noise floor (cost about n / 2) an updated Jacobian may declare convergence
     return solver.solve(fun, jac, x0, layout.lower, layout.upper, scale, max_evaluations=s.max_evaluations,
-                        xtol=s.xtol, ftol=s.ftol, r0=r0)
+                        xtol=s.xtol, ftol=s.ftol, r0=r0, trusted_below=0.5 * n * s.misfit_ratio)
 
 
 def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,

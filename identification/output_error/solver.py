@@ -57,12 +57,15 @@ def _step(J, r, mu):
 
 
 def solve(fun, fd_jacobian, x0, lower, upper, scale, *, max_evaluations: int = 20, xtol: float = 1e-7,
-          ftol: float = 0.01, mu0: float = 1e-3, r0=None) -> Solution:
+          ftol: float = 0.01, mu0: float = 1e-3, r0=None, trusted_below: float = np.inf) -> Solution:
     """Minimise 0.5 |fun(x)|^2 over the box [lower, upper] from ``x0``.
 
     ``fun(x)`` -> residuals (n,) (NaN when x cannot be simulated); ``fd_jacobian(x, r)`` -> (n, p)
     forward differences at x whose residuals are r; ``scale`` (p,) parameter scales; ``r0``:
-    fun(x0) if already evaluated.  ValueError if x0 cannot be simulated."""
+    fun(x0) if already evaluated; ``trusted_below``: the cost under which an updated (not fresh)
+    Jacobian's prediction may stop the solve (above it a fresh one is taken first: a Broyden
+    Jacobian far from the optimum can predict no decrease where there is one).  ValueError if x0
+    cannot be simulated."""
     x = np.clip(np.asarray(x0, float), lower, upper)
     scale = np.asarray(scale, float)
     r = fun(x) if r0 is None else np.asarray(r0, float)
@@ -74,12 +77,20 @@ def solve(fun, fd_jacobian, x0, lower, upper, scale, *, max_evaluations: int = 2
     while nfev < max_evaluations:
         gn = _step(J, r, 0.0)
         if -float((J.T @ r) @ gn) - 0.5 * float(np.sum((J @ gn) ** 2)) <= ftol:
-            return Solution(x, r, J / scale, nfev, njev, True,
-                            f"converged: the Gauss-Newton step predicts a cost decrease below {ftol:g}")
+            if fresh or cost <= trusted_below:
+                return Solution(x, r, J / scale, nfev, njev, True,
+                                f"converged: the Gauss-Newton step predicts a cost decrease below {ftol:g}")
+            J, fresh = fd_jacobian(x, r) * scale, True
+            njev += 1
+            continue
         dz = _step(J, r, mu)
         xt = np.clip(x + dz * scale, lower, upper)
         dz = (xt - x) / scale
         if not np.any(dz):
+            if not fresh:
+                J, fresh = fd_jacobian(x, r) * scale, True
+                njev += 1
+                continue
             return Solution(x, r, J / scale, nfev, njev, True, "the step is zero (a corner of the box)")
         rt = fun(xt)
         nfev += 1
