@@ -193,7 +193,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=None, help="keep the log's first S seconds")
     ap.add_argument("--no-sysid", action="store_true", help="skip mujoco.sysid")
     ap.add_argument("--sysid-max-iter", type=int, default=100, help="mujoco.sysid's Gauss-Newton iterations")
-    ap.add_argument("--max-evaluations", type=int, default=12, help="the output-error fit's cost evaluations")
+    ap.add_argument("--max-evaluations", type=int, default=30, help="the output-error fit's trial steps")
     ap.add_argument("--cost-sets", type=int, default=4, help="parameter sets of the per-rollout cost")
     ap.add_argument("--json", help="write the numbers as JSON")
     args = ap.parse_args(argv)

@@ -112,6 +112,25 @@ def test_jacobian_covariance_is_the_linear_least_squares_one():
     assert s2 == pytest.approx(ls.sigma_rho ** 2)
 
 
+def test_hac_intervals_widen_for_held_quantisation_errors():
+    """White residuals: the sandwich agrees with s^2 (J^T J)^-1 within its sampling spread; the
+    same variance held constant over blocks of 50 samples (a resting motor's quantisation error)
+    widens it by about sqrt(50) (the plain formula cannot see the difference)."""
+    from identification.output_error.intervals import hac_jacobian_covariance, jacobian_covariance
+
+    rng = np.random.default_rng(5)
+    n = 20000
+    t = np.arange(n)
+    J = np.stack([np.sin(2 * np.pi * t / 4000), np.cos(2 * np.pi * t / 7000) * 1e3], axis=1)
+    white = rng.normal(size=n)
+    held = np.repeat(rng.normal(size=n // 50), 50)
+    for r, low, high in ((white, 0.8, 1.25), (held, 4.0, 10.0)):
+        plain, _ = jacobian_covariance(J, r)
+        hac, _ = hac_jacobian_covariance(J, r, t, n)
+        ratio = np.sqrt(np.diag(hac) / np.diag(plain))
+        assert np.all((ratio > low) & (ratio < high)), ratio
+
+
 def test_misfit_is_reported_with_a_pointer_to_diagnose(logs):
     """The truth is at the noise floor; 5 % too little friction is flagged and points to diagnose."""
     from identification.output_error.fit import cost_at
@@ -237,7 +256,7 @@ def test_model_file_errors_are_one_line(tmp_path):
 
 def test_cli_json_holds_output_error_beside_least_squares(logs, tmp_path, capsys):
     """`identify --method output-error`: text and JSON carry both methods (a fit cut short at 2
-    evaluations per span says it did not converge)."""
+    trial steps says it did not converge)."""
     from neck_sim.cli import main
 
     out = tmp_path / "id.json"
@@ -252,4 +271,4 @@ def test_cli_json_holds_output_error_beside_least_squares(logs, tmp_path, capsys
         rows = oe["parameters"][group]
         assert len(rows) == 4 and all(np.isfinite(r["value"]) and r["ci95"] > 0 for r in rows)
     assert oe["converged"] is False and oe["integrator"] == "implicitfast"
-    assert [s["span_s"] for s in oe["stages"]] == [2.0, 4.5]
+    assert oe["trial_steps"] == 2

@@ -17,7 +17,8 @@ Example::
     result.group("k"), result.group("k", "ci95")      # N/m, per cable
 
 Modules: ``problem`` (logs, parameter vector, weighted residuals), ``rollouts`` (the parallel
-re-simulation engine), ``fit`` (trust-region least squares), ``intervals``, ``misfit``,
+re-simulation engine), ``solver`` (Levenberg-Marquardt with Broyden updates), ``fit`` (one solve
+over the whole logs), ``intervals`` (Newey-West sandwich), ``misfit``,
 ``identify`` (start point, extended models, the entry point), ``report`` (text).
 """
 

@@ -25,7 +25,7 @@ from identification.diagnosis import columns as effect_columns
 from identification.output_error.rollouts import Experiment
 from neck_sim.params import NeckParams, to_dict
 
-__all__ = ["Measured", "Layout", "noise_sigmas", "residuals", "SIGNALS", "same_neck"]
+__all__ = ["Measured", "Layout", "noise_sigmas", "residuals", "residual_samples", "SIGNALS", "same_neck"]
 
 #: The per-cable groups of the base model: (symbol, unit, NeckParams field, lower bound).
 GROUPS = (("f_s", "N", ("friction", "f_s"), 0.0), ("k", "N/m", ("cables", "k"), 1.0),
@@ -202,6 +202,20 @@ class Layout:
     def group(self, x, symbol: str) -> np.ndarray:
         """Values of the parameters named ``symbol(i)``, in cable order."""
         return np.asarray(x)[[i for i, n in enumerate(self.names) if n.split("(")[0] == symbol]]
+
+
+def residual_samples(measured) -> tuple[np.ndarray, int]:
+    """(rows, n): the motor-sample index of every residual in :func:`residuals`' order (encoders
+    of every log, then camera frames of every log, each frame at the sample it falls in), the
+    logs' samples numbered one after the other; n their total."""
+    enc, cam, offset = [], [], 0
+    for meas in measured:
+        T, m = meas.theta.shape
+        enc.append(np.repeat(np.arange(T) + offset, m))
+        k = np.minimum((meas.replay.camera_t / meas.replay.period).astype(int), T - 1)
+        cam.append(np.repeat(k + offset, meas.camera_alpha.shape[1]))
+        offset += T
+    return np.concatenate(enc + cam), offset
 
 
 def residuals(measured, runs, sigmas: dict) -> dict:

@@ -33,9 +33,9 @@ def format_output_error(result: OutputErrorResult, reference=None, *, reference_
         lines.append(f"{n + ' (' + u + ')':24} {s0:22.6g} {f'{v:.6g} +- {c:.3g}':>28} {diff:>26}")
     lines.append("cost / noise floor per signal: " + ", ".join(f"{k} {v:.3f}" for k, v in result.cost_ratio.items())
                  + " (about 1: the residuals are the sensors' noise)")
-    spans = ", ".join(f"{st['span_s']:.3g}" for st in result.stages)
-    lines.append(f"{result.rollouts} rollouts ({result.simulated_s:.0f} s of plant time) over spans of {spans} s, "
-                 f"{result.iterations} Jacobians, {result.cpu_s:.1f} s CPU; stopped: {result.status}")
+    lines.append(f"{result.rollouts} rollouts ({result.simulated_s:.0f} s of plant time): {result.iterations} "
+                 f"finite-difference Jacobian{'s' if result.iterations != 1 else ''}, {result.trial_steps} trial "
+                 f"steps, {result.cpu_s:.1f} s CPU; stopped: {result.status}")
     if result.rejected:
         lines.append(f"{len(result.rejected)} rejected step(s): " + "; ".join(result.rejected[:3])
                      + (" ..." if len(result.rejected) > 3 else ""))

@@ -28,10 +28,10 @@ def add_arguments(parser) -> None:
                              "constants and effects, the effects' magnitudes fitted too")
     parser.add_argument("--integrator", default=None, metavar="NAME",
                         help="output-error: implicitfast, implicit or discrete, the MuJoCo integrator of every re-simulation of the fit (default: the plant's "
-                             "choice at the start point, kept for the whole fit)")
+                             "choice for the nominal constants (the log's neck record or --model), kept for the whole fit)")
     parser.add_argument("--max-evaluations", type=positive_int, default=None, metavar="N",
-                        help=f"output-error: trust-region cost evaluations (each one rollout per log, besides the "
-                             f"Jacobians; default {OutputErrorSettings.max_evaluations})")
+                        help=f"output-error: trial steps of the solver (each one rollout per log, besides the "
+                             f"finite-difference Jacobians; default {OutputErrorSettings.max_evaluations})")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (output-error)")
     parser.add_argument("--params", metavar="FILE",
                         help="nominal constants and routing (.json/.toml, 'neck-sim params' format) instead of the "
