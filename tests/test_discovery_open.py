@@ -21,7 +21,9 @@ import pytest
 from identification.diagnosis import DiagnosisSettings, diagnose_log
 from open_world.generator import OUT_OF_VOCABULARY, UNEXPLAINED, make_spec, simulate
 
-SEEDS = (1, 2, 3)
+#: Seeds 1-2 in CI; seed 3 too with NECK_SIM_FULL_GRID=1 (``benchmarks/bench_detection.py --seeds
+#: 1,2,3`` prints the whole table; the suite's time budget holds two).
+SEEDS = (1, 2, 3) if os.environ.get("NECK_SIM_FULL_GRID") == "1" else (1, 2)
 NAMED = ("spring_error", "joint_friction", "camera_delay", "viscous_friction", "dry_friction", "stribeck_friction",
          "payload", "actuation_delay", "actuation_delay_one", "pretension")
 FAST = DiagnosisSettings(resimulate=False, max_steps=1)
@@ -129,11 +131,12 @@ def test_viscous_friction_on_the_soft_left_cable_is_named_alone(diagnosed, seed)
     assert 4 in f.cables and max(c_v) == c_v[3], (f.cables, c_v)
 
 
-@pytest.mark.parametrize("seed", (1, 3))
+@pytest.mark.parametrize("seed", (3,))
 def test_cable_hysteresis_is_unexplained_without_a_borrowed_name(diagnosed, seed):
     """A cable's own hysteresis (out of the vocabulary): ``unexplained`` alone.  Its best rest
     elongation sits on the bound of the pretension's range (-1 mm), so the name is not lent.
-    (Seed 2 gives ``none``: the bench's table.)"""
+    (Seed 2 gives ``none``, seed 1 ``unexplained`` even without the bound rule: the bench's
+    table; seed 3 is the one the rule decides.)"""
     spec, diag = diagnosed("cable_hysteresis", seed)
     assert diag.verdict == UNEXPLAINED, (spec.description, diag.verdict)
 

@@ -9,6 +9,8 @@ The targets are about 68 % within 1 sigma and 95 % within 1.96 sigma; this test 
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -51,6 +53,9 @@ def z_scores(tmp_path_factory):
     return np.array(zs), names, converged
 
 
+@pytest.mark.skipif(os.environ.get("NECK_SIM_FULL_GRID") != "1",
+                    reason="NECK_SIM_FULL_GRID=1 runs it (the suite's time budget; "
+                           "bench_output_error_coverage.py measures 20 seeds)")
 def test_intervals_cover_the_truth_over_seeds(z_scores):
     """Every fit converges and the pooled coverage meets 55 % / 88 % (measured on seeds 0-3: 64 % /
     89 %, seed by seed 69/100, 50/94, 44/62, 94/100 %)."""
