@@ -118,7 +118,7 @@ def sysid(log, ls, threads: int, max_iter: int):
     meas = Measured.from_log(log, nominal)
     layout = Layout.of(nominal)
     x0, _ = start_point(layout, [ls])
-    integrator = choose_integrator(layout, x0, OutputErrorSettings())
+    integrator = choose_integrator(layout, OutputErrorSettings())
     sigmas = noise_sigmas(nominal)
     count = [0]
 

@@ -3,8 +3,8 @@
 :func:`identification.output_error.solver.solve` (bounds of :class:`Layout`, parameter scales
 from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
-batch of p rollouts per experiment (the engine may run them in parallel), taken once per span
-and then updated by Broyden's rank-one formula after every trial step (a fresh one only after a
+batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
+updated by Broyden's rank-one formula after every trial step (a fresh one only after a
 step on an updated Jacobian is rejected).  The integrator is fixed once per fit (the plant's
 choice for the nominal constants, :func:`choose_integrator`, or given): the model is continuous in every
 parameter.  A candidate whose re-simulation diverges gets NaN residuals, which the solver treats
@@ -36,8 +36,7 @@ class OutputErrorResult:
     """The fitted parameters (``value``, ``sigma``, ``ci95`` half-widths, (p,) in ``names`` order,
     units ``units``) beside the ``start``; cost ratio per signal (1 = noise floor), the misfit
     lines, rejected candidates, rollouts run, finite-difference Jacobians (``iterations``) and
-    trial steps, CPU s,
-    the integrator and the solver's stop reason."""
+    trial steps, CPU s, the integrator and the solver's stop reason."""
 
     names: tuple
     units: tuple
@@ -93,14 +92,14 @@ def _scales(layout: Layout, x0) -> np.ndarray:
     return np.where(sc > 0, sc, 1.0)
 
 
-def choose_integrator(layout: Layout, x0, settings: OutputErrorSettings) -> str:
+def choose_integrator(layout: Layout, settings: OutputErrorSettings) -> str:
     """The integrator for the whole fit: the given one, else the plant's choice
     (:func:`neck_sim.mjcf.integrator_for`) for the nominal constants of ``layout`` (the log's
     neck record or the ``--model`` file), not for the start point: the least squares cannot see
     c_a, and a start above the plant's switch (60 N s/m at the default bars) would put the whole
     fit on ``discrete``, which differs from ``implicitfast`` by far more than the noise (on the
     clean 85 s identification run the truth itself costs 370 times the encoders' noise floor
-    there).  ``x0`` is kept for the signature's callers."""
+    there)."""
     if settings.integrator is not None:
         return settings.integrator
     from neck_sim.mjcf import integrator_for
@@ -213,7 +212,7 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     s = settings or OutputErrorSettings()
     x = np.clip(np.asarray(x0, dtype=float), layout.lower, layout.upper)
     start = x.copy()
-    integrator = choose_integrator(layout, x, s)
+    integrator = choose_integrator(layout, s)
     scale = _scales(layout, x)
     cpu0 = time.process_time()
     with tqdm(desc="output-error fit", unit="rollout", disable=not progress, leave=False) as bar:

@@ -101,15 +101,6 @@ class Measured:
     def duration_s(self) -> float:
         return self.replay.n_periods * self.replay.period
 
-    def window(self, seconds: float) -> "Measured":
-        """The first ``seconds`` of this log (itself when it is not longer)."""
-        T = int(round(seconds / self.replay.period))
-        if T >= self.replay.n_periods:
-            return self
-        r = self.replay
-        keep = r.camera_t <= T * r.period
-        return Measured(Experiment(r.force[:T], r.period, r.camera_t[keep], r.alpha0, name=r.name),
-                        self.theta[:T], self.camera_alpha[keep], self.start_pose)
 
 
 def same_neck(params: NeckParams, other: NeckParams, name: str, first: str) -> None:
