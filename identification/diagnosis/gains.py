@@ -96,11 +96,14 @@ class AlphaHatErrors:
         return {"holdout": self.holdout.to_dict(), "all": self.all.to_dict()}
 
 
-def alpha_hat_errors(data: MeasuredData, fits, holdout: np.ndarray, step: int = 4) -> list[AlphaHatErrors]:
+def alpha_hat_errors(data: MeasuredData, fits, holdout: np.ndarray, step: int = 1) -> list[AlphaHatErrors]:
     """alpha_hat by eq (35) corrected with each model's elongation, against the camera frames.
 
     Integrated from the first slow-grid sample (filtered camera pose) over every ``step``-th
     encoder sample; errors (deg) at the camera frames within ``holdout`` (S,) bool and at all.
+    Every sample by default: eq (35)'s forward steps err to first order in the step, and every
+    4th sample drifted the top joint by 1 deg over a 42 s log (|rho| with time 0.35, a
+    structure); at every sample 0.13.
     """
     from neck_sim.analytic import estimate_alpha_pinv
 

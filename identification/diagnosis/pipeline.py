@@ -100,10 +100,7 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
                      f"(this neck: {data.C} cables, {data.n} joints)")
     elif s.alpha_hat:
         try:
-            # eq (35) integrated at every encoder sample: its forward steps err to first order in the
-            # step, and every 4th sample (the default) drifted the top joint by 1 deg over a 42 s
-            # log (|rho| with time 0.35, a structure); at every sample 0.13
-            alpha = alpha_hat_errors(data, fits, split.holdout, step=1)
+            alpha = alpha_hat_errors(data, fits, split.holdout)
         except UnreachableError as exc:        # the motors reach no pose: reported, not fatal
             notes.append(f"alpha_hat not evaluated: {exc}")
     timings["alpha_hat"] = time.perf_counter() - t1
