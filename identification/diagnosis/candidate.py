@@ -10,7 +10,7 @@ import numpy as np
 from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import located_comparison, search_shape, shape_grid
-from identification.diagnosis.support import excitation_summary, log_gaps, separability_gap, unsupported_items
+from identification.diagnosis.support import log_support, separability_gap, unsupported_items
 from identification.diagnosis.statistics import (block_scores, clearly_nonzero, explained_share, in_band, margin_ratio,
                                                  score)
 
@@ -207,8 +207,7 @@ def separability(ctx: StepContext, term: Term, fit: Fit) -> tuple[Separability, 
         W2, Y2 = other.rows
         cols[label] = ((Y2 - W2 @ full.value) - r0) / h
         carries[label] = not own and v != 0
-    gaps = data.cached(("support gaps", ctx.settings.support),
-                       lambda: log_gaps(excitation_summary(data), data.n, ctx.settings.support))
+    _, gaps = log_support(data, ctx.settings.support)
     unsupported = unsupported_items(gaps, term.name)
     out = []
     for name, c in cols.items():

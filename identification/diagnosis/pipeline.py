@@ -22,7 +22,7 @@ from identification.diagnosis.selection import Step, run_step
 from identification.diagnosis.settings import DiagnosisSettings, ModelLike, parse_model
 from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import borrowed_names, leftover_structure
-from identification.diagnosis.support import blocked_candidates, excitation_summary, log_gaps, short_log_gap
+from identification.diagnosis.support import blocked_candidates, log_support, short_log_gap
 from identification.preprocessing import Measurements
 from neck_sim.analytic import UnreachableError
 from neck_sim.params import NeckParams
@@ -55,8 +55,7 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
     timings: dict[str, float] = {}
     notes: list[str] = []
     t0 = time.perf_counter()
-    summary = excitation_summary(data)
-    gaps = log_gaps(summary, data.n, s.support)
+    summary, gaps = log_support(data, s.support)
     fatal = any(g.fatal for g in gaps)
     blocked = {} if fatal else blocked_candidates(gaps, data.C, data.n)
     if fatal:                  # the log cannot support a verdict: the baseline only, no candidate

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["SupportSettings", "Gap", "ExcitationSummary", "excitation_summary", "log_gaps", "reversals",
-           "blocked_candidates", "short_log_gap", "separability_gap"]
+           "blocked_candidates", "short_log_gap", "separability_gap", "log_support"]
 
 
 @dataclass(frozen=True)
@@ -145,6 +145,17 @@ def excitation_summary(data) -> ExcitationSummary:
     hold = float(np.count_nonzero(act < 0.1 * max(np.percentile(act, 95), 1e-12)) * dt)
     return ExcitationSummary(float(data.t[-1] - data.t[0]), tuple(speed.tolist()), rev, tuple(lo.tolist()),
                              tuple(hi.tolist()), tuple(rng.tolist()), hold)
+
+
+def log_support(data, s: SupportSettings) -> tuple[ExcitationSummary, tuple[Gap, ...]]:
+    """(:func:`excitation_summary`, :func:`log_gaps`) of ``data`` (a MeasuredData), computed once
+    per log and settings: the diagnosis reads them before its steps and every candidate's
+    separability reads the gaps again."""
+    def compute():
+        summary = excitation_summary(data)
+        return summary, log_gaps(summary, data.n, s)
+
+    return data.cached(("log support", s), compute)
 
 
 def log_gaps(summary: ExcitationSummary, n_joints: int, s: SupportSettings | None = None) -> tuple[Gap, ...]:
