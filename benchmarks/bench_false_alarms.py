@@ -11,7 +11,9 @@ verdict is decided at the first step).
 
 Prints a Markdown table (verdict counts per row) and the false-alarm total.  Logs can be kept in
 ``--logs DIR`` (reused when present: re-diagnosing after a change of the method skips the
-simulations).
+simulations).  ``--jsonl PATH`` gets each log's results as soon as that log is diagnosed; a rerun
+with the same ``PATH`` skips the logs it already holds, so a grid interrupted after an hour
+resumes where it stopped.
 
 Usage: ``python benchmarks/bench_false_alarms.py [--seeds 0,1,2,3,4] [--workers 2] [--logs DIR]
 [--only control-test,identification,multisine] [--laws 1,2,3] [--scales 1,0.5] [--jsonl PATH]
@@ -69,8 +71,22 @@ def diagnose_clean(path, end: float | None = None):
     return diagnose_log(log, settings=DiagnosisSettings(max_steps=1, resimulate=False))
 
 
+def _key(r) -> tuple:
+    return (r["excitation"], int(r["law"]), float(r["scale"]), int(r["seed"]))
+
+
+def _append(path: str, rows: list) -> None:
+    """Append ``rows`` to the JSONL ``path`` in one write (O_APPEND: concurrent workers' lines do
+    not interleave), so an interrupted grid keeps every log it finished."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        os.write(fd, "".join(json.dumps(r) + "\n" for r in rows).encode())
+    finally:
+        os.close(fd)
+
+
 def _one(job_and_dir):
-    job, logs = job_and_dir
+    job, logs, jsonl = job_and_dir
     kind, law, scale, seed = job
     with tempfile.TemporaryDirectory(prefix="neck-sim-clean-") as scratch:
         where = logs or scratch
@@ -94,6 +110,8 @@ def _one(job_and_dir):
                         "leftover": [x.describe() for x in diag.leftover.found[:2]] if diag.leftover else [],
                         "not_named": [n for n in diag.notes if "but is not named" in n],
                         "t_sim": t_sim, "t_diag": time.perf_counter() - t0})
+        if jsonl:
+            _append(jsonl, out)
         return out
 
 
@@ -134,7 +152,8 @@ def main(argv=None) -> int:
     ap.add_argument("--multisine-lengths", default="12,24", help="multisine durations (s)")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--logs", default=None, help="keep (and reuse) the simulated logs in this directory")
-    ap.add_argument("--jsonl", default=None)
+    ap.add_argument("--jsonl", default=None, help="append each log's results here as it finishes; a rerun with "
+                    "the same file skips the logs it holds (resumes an interrupted grid)")
     ap.add_argument("--from-jsonl", default=None)
     ap.add_argument("--docs", default=None, help="write the table into this Markdown file between its markers")
     ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
@@ -161,16 +180,20 @@ def main(argv=None) -> int:
                      for s in seeds]
     if args.logs:
         os.makedirs(args.logs, exist_ok=True)
+    held = []
+    if args.jsonl and os.path.exists(args.jsonl):
+        with open(args.jsonl) as fh:
+            held = [r for r in (json.loads(x) for x in fh if x.strip()) if _key(r) in set(jobs)]
+    todo = [j for j in jobs if j not in {_key(r) for r in held}]
+    if held:
+        print(f"{len(jobs) - len(todo)} of {len(jobs)} logs already in {args.jsonl}; running the other {len(todo)}")
     where = ExecutorSpec(workers=args.workers)
     t0 = time.perf_counter()
-    done = run_campaign(_one, [(j, args.logs) for j in jobs], where, labels=[" ".join(map(str, j)) for j in jobs],
-                        desc="clean logs")
-    results = [r for rs in done for r in rs]
-    if args.jsonl:
-        with open(args.jsonl, "a") as fh:
-            fh.writelines(json.dumps(r) + "\n" for r in results)
-    text = (f"{len(results)} diagnoses of {len(jobs)} clean logs in {time.perf_counter() - t0:.0f} s on "
-            f"{where.describe()}.\n\n" + table(results))
+    done = run_campaign(_one, [(j, args.logs, args.jsonl) for j in todo], where,
+                        labels=[" ".join(map(str, j)) for j in todo], desc="clean logs")
+    results = held + [r for rs in done for r in rs]
+    text = (f"{len(results)} diagnoses of {len(jobs)} clean logs ({len(todo)} run now, in {time.perf_counter() - t0:.0f} s on "
+            f"{where.describe()}).\n\n" + table(results))
     print(text)
     if args.docs:
         from bench_detection import write_docs
