@@ -454,6 +454,9 @@ def load(path: str | os.PathLike, *, accept_implausible: bool = False) -> NeckPa
         else:
             raise ParameterError(f"{path}: parameter files end in .json or .toml")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        if _looks_like_the_printed_table(raw):
+            raise ParameterError(f"{path}: this is the table `neck-sim params` prints, not a parameter file; "
+                                 "write one with `neck-sim params [--example NAME] -o FILE.toml`") from None
         raise ParameterError(f"{path}: malformed parameter file ({exc})") from None
     if not data:
         raise ParameterError(f"{path}: the parameter file is empty (it would silently mean the defaults; "
@@ -462,6 +465,13 @@ def load(path: str | os.PathLike, *, accept_implausible: bool = False) -> NeckPa
     if found and not accept_implausible:
         raise ParameterError(f"{path}: {'; '.join(found)}; use --accept-implausible-params if intended")
     return from_dict(data)
+
+
+def _looks_like_the_printed_table(raw: bytes) -> bool:
+    """True when ``raw`` starts like :func:`describe`'s output (``group.name  value  unit  source``),
+    which a user may have redirected into a file meant to be a parameter file."""
+    first = raw.decode(errors="replace").lstrip().split("\n", 1)[0].split()
+    return len(first) >= 3 and first[0].split(".", 1)[0] in _GROUPS and "=" not in first
 
 
 def describe(params: NeckParams) -> str:

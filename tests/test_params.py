@@ -123,6 +123,16 @@ def test_empty_parameter_file_is_refused_naming_it(tmp_path, name, text):
         P.load(path)
 
 
+def test_the_printed_table_redirected_into_a_file_is_refused_saying_how_to_write_one(tmp_path):
+    path = tmp_path / "p.toml"
+    path.write_text(P.describe(P.default_params()))     # what `neck-sim params > p.toml` writes
+    with pytest.raises(P.ParameterError, match=rf"{path}: this is the table `neck-sim params` prints.*-o FILE"):
+        P.load(path)
+    path.write_text("geometry.L = \n")                    # a broken file is still called malformed
+    with pytest.raises(P.ParameterError, match=rf"{path}: malformed parameter file"):
+        P.load(path)
+
+
 def test_control_rate_that_the_physics_step_cannot_divide():
     from neck_sim.plant import Plant
 
