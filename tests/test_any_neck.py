@@ -312,3 +312,55 @@ def test_joint_excitation_reads_range_speed_and_reversals_of_known_sines():
     np.testing.assert_allclose(ex.angle_range, 2 * amp, rtol=1e-6)
     np.testing.assert_allclose(ex.speed_max, 2 * np.pi * freq * amp, rtol=1e-5)
     assert ex.reversals.tolist() == [10, 20]
+
+
+def test_a_one_joint_term_is_measured_on_its_own_channel():
+    """Residuals of a 10-joint, 4-cable neck in which the candidate removes 40 % of joint 3's torque
+    residual and changes nothing else: on its own channel the improvement is 0.4 (the whole score's
+    0.4 / 20 = 2 % minus nothing), the F-test is that of one channel's effective samples (computed
+    here from the F distribution) times 2N, and the term is named on it although the whole score's
+    tests fail; a term on joint 4 sees nothing there, and one that makes the whole score worse on
+    held-out data is not named."""
+    from types import SimpleNamespace
+
+    from scipy import stats
+
+    from identification.diagnosis.candidates import Term
+    from identification.diagnosis.materiality import candidate_decision, own_comparison, own_min_improvement
+    from identification.diagnosis.statistics import Comparison
+
+    rng = np.random.default_rng(3)
+    S, n, C, rate, fc = 900, 10, 4, 30.0, 2.6
+    fold = (np.arange(S) // 50) % 3
+    split = SimpleNamespace(chunk=np.arange(S) // 8, n_chunks=S // 8 + (S % 8 > 0), train=fold != 1, holdout=fold == 1)
+    prep = SimpleNamespace(cutoffs={"common": SimpleNamespace(hz=fc)}, rate_hz=rate)
+    data = SimpleNamespace(n=n, C=C, S=S, prep=prep)
+    settings = SimpleNamespace(min_improvement=0.02, borderline=0.1, borderline_decades=0.3)
+    alpha_c = 0.01 / 10
+    ctx = SimpleNamespace(data=data, split=split, settings=settings, alpha_candidate=alpha_c,
+                          candidate_margins=lambda c: c.margins(alpha_c, 0.02),
+                          candidate_significant=lambda c: c.significant(alpha_c, 0.02))
+    base = rng.normal(0.0, 1.0, (S, n + C))
+    cand = base.copy()
+    cand[:, 2] *= np.sqrt(0.6)                   # joint 3's residual: 40 % of its mean square removed
+    ref = SimpleNamespace(cv=base, fit=SimpleNamespace(residuals=lambda: base))
+    new = SimpleNamespace(cv=cand, fit=SimpleNamespace(residuals=lambda: cand))
+    term = Term("spring_error", (("joint", 3),))
+    own = own_comparison(ctx, ref, new, term, 3)
+    assert own.improvement == pytest.approx(0.4) and own.holdout_improvement == pytest.approx(0.4)
+    n_eff = int(split.train.sum() * 2 * fc / rate)
+    F = (0.4 / 3) / (0.6 / (n_eff - 3))
+    assert own.p_train == pytest.approx(min(1.0, 2 * n * stats.f.sf(F, 3, n_eff - 3)), rel=1e-6)
+    assert own.p_holdout < alpha_c
+    assert own_comparison(ctx, ref, new, Term("payload", ()), 1) is None
+    elsewhere = own_comparison(ctx, ref, new, Term("spring_error", (("joint", 4),)), 3)
+    assert elsewhere.improvement == 0.0 and elsewhere.p_train == 1.0
+
+    whole = Comparison(0.4 / (2 * n), 0.4 / (2 * n), 0.02, 0.3)      # fails the step's tests
+    passes, held_to, margins, note = candidate_decision(ctx, whole, own)
+    assert passes and (held_to.p_train, held_to.p_holdout) == (own.p_train, own.p_holdout)
+    assert held_to.improvement == whole.improvement and margins["improvement"] == pytest.approx(0.4 / 0.12 - 1)
+    assert own_min_improvement(0.02) == pytest.approx(0.12) and "own channel" in note
+    worse = Comparison(-0.001, -0.001, 0.02, 0.3)
+    assert not candidate_decision(ctx, worse, own)[0]
+    assert candidate_decision(ctx, whole, None)[:2] == (False, whole)
