@@ -151,7 +151,7 @@ def blind10(tmp_path_factory):
 
 # The whole blind grid of this neck (every case, seeds 1-3) is benchmarks/bench_any_neck.py
 # --detection; the suite keeps the cases the 3-joint tests do not already cover in kind (the
-# hinge's column, the one-joint spring, the payload; seed 1 each) and runs the others only when
+# hinge's column and the payload, seed 1; the one-joint spring, seed 2) and runs the others only when
 # asked, to stay in its time budget.
 full_grid = pytest.mark.skipif(os.environ.get("NECK_SIM_FULL_GRID") != "1",
                                reason="NECK_SIM_FULL_GRID=1 runs it (bench_any_neck.py --detection runs seeds 1-3)")
@@ -201,33 +201,46 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
 
 
+def test_a_weak_side_spring_on_the_ten_joint_neck_is_named_on_its_joint(blind10):
+    """One side spring 20 % weak (MuJoCo's tendon stiffness, seed 2: joint 1's left spring, 600 ->
+    483 N/m): the spring-error candidate searched joint by joint picks the hidden joint over the
+    other nine and over every joint at once, and is named on its own channel (materiality.py: joint
+    1's torque residual 38 % lower held out, Wilcoxon p 6e-5 and F-test p 8.4e-4 with the factor 2N
+    counted, against 0.01 / 10 candidates), while the whole score moves by 1.8 % (below its 2 %).
+    Named alone, on joint 1, dk of the hidden spring within the 3-joint tests' 10 % (-0.4 %)."""
+    spec, diag = blind10("spring_error", 2, 0.4)
+    assert diag.verdict == "spring_error", diag.verdict
+    f = diag.findings[0]
+    assert f.joints == [spec.joints[0] + 1] and not f.cables
+    np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+
+
 def _located_fit(diag, spec):
     """(joint the hidden effect's own candidate was located on, or None, and its fit)."""
     own = _own_candidate(diag, spec)
     return own.term.identification.joint_of(dict(own.term.shape)), own.fit
 
 
-def test_a_weak_side_spring_on_the_ten_joint_neck_is_located_on_its_joint(blind10):
-    """One side spring 20 % weak (MuJoCo's tendon stiffness, seed 1: joint 1's left spring, 600 ->
-    480 N/m): the spring-error candidate searched joint by joint picks the hidden joint over the
-    other nine and over every joint at once (20 columns), and its dk of the hidden spring lies
-    within 2 of its sigmas of the hidden change (seed 1: -140 +- 93 of -120 N/m).  Not named on
-    this 15.6 s log: the improvement (0.8 % of the score) and the F-test (p 0.25 with the choice
-    among ten joints counted) fall short of the step's levels (docs/your-own-neck.md, section 7)."""
+@full_grid
+def test_a_weak_side_spring_below_its_channels_evidence_is_located_not_named(blind10):
+    """Seed 1 (joint 1 left 600 -> 480 N/m): located on joint 1, its dk within 2 of its sigmas of
+    the hidden change (-140 +- 93 of -120 N/m), not named: its channel is 15 % lower held out but
+    the F-test of that channel's 54 effective training samples gives p 0.054 with the factor 2N
+    (docs/your-own-neck.md, section 7: a longer log)."""
     spec, diag = blind10("spring_error", SEED, 0.4)
     joint, fit = _located_fit(diag, spec)
     assert joint == spec.joints[0] + 1, (spec.description, joint)
     i = list(fit.names).index(spec.symbol)
     assert abs(fit.value[i] - spec.magnitude) < 2 * fit.sigma[i], (fit.value[i], fit.sigma[i], spec.magnitude)
+    assert diag.verdict == "none"
 
 
 @full_grid
-@pytest.mark.parametrize("seed", (2, 3))
-def test_the_located_spring_error_sizes_the_hidden_spring_within_ten_percent(blind10, seed):
-    """Seeds 2 and 3 (joint 1 left 600 -> 483 N/m; joint 5 right 200 -> 164 N/m): located on the
-    hidden joint, dk of the hidden spring within the 3-joint tests' 10 % (-0.4 %, +5.5 %).  Seed 1's
-    sigma is 78 % of its change (the test above)."""
-    spec, diag = blind10("spring_error", seed, 0.4)
+def test_the_located_spring_error_sizes_the_hidden_spring_within_ten_percent(blind10):
+    """Seed 3 (joint 5 right 200 -> 164 N/m): located on the hidden joint, dk of the hidden spring
+    within the 3-joint tests' 10 % (+5.5 %); not named on this 15.6 s log (its channel's F-test p
+    0.37 with the factor 2N)."""
+    spec, diag = blind10("spring_error", 3, 0.4)
     joint, fit = _located_fit(diag, spec)
     assert joint == spec.joints[0] + 1, (spec.description, joint)
     np.testing.assert_allclose(fit.value[list(fit.names).index(spec.symbol)], spec.magnitude, rtol=0.10)
