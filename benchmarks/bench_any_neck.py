@@ -19,7 +19,9 @@ own, never the candidates' code; 15.6 s reachable-path runs), diagnosed blind (o
 re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one,
 and the hidden effect's own candidate at step 1 whether named or not (its fit at the hidden place,
 training F-test and held-out Wilcoxon p as the step tests them, its cross-validated improvement,
-where its largest |value| / sigma sits, and the joint of a one-joint (located) candidate).
+where its largest |value| / sigma sits, the joint of a one-joint (located) candidate and, when
+it is held to its joint's torque channel (``identification/diagnosis/materiality.py``), that
+channel's cross-validated improvement; its p values are then that channel's).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
