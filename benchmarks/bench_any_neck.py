@@ -19,11 +19,14 @@ own, never the candidates' code; 15.6 s reachable-path runs), diagnosed blind (o
 re-simulation) from the nominal model; printed: verdict, where, magnitude against the hidden one,
 and the hidden effect's own candidate at step 1 whether named or not (its fit at the hidden place,
 training F-test and held-out Wilcoxon p as the step tests them, its cross-validated improvement,
-where its largest |value| / sigma sits, and the joint of a one-joint (located) candidate).
+where its largest |value| / sigma sits, the joint of a one-joint (located) candidate and, when
+it is held to its joint's torque channel (``identification/diagnosis/materiality.py``), that
+channel's cross-validated improvement; its p values are then that channel's).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
+    python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
 """
 
 from __future__ import annotations
@@ -62,7 +65,7 @@ DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction":
              "actuation_delay": 1.0}
 
 
-def detection(directory: str, seeds) -> None:
+def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
     from open_world.generator import make_spec, simulate_reachable
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -72,11 +75,14 @@ def detection(directory: str, seeds) -> None:
     print(f"{'case':16} {'seed':>4}  {'hidden':48} {'verdict':28} {'where':>8} {'estimate':>10} {'hidden':>9}  its candidate at step 1")
     for seed in seeds:
         for name, level in DETECTION.items():
+            if cases and name not in cases:
+                continue
             spec = make_spec(name, seed, level=level, params=p)
-            path = os.path.join(directory, f"detect_{name}_{seed}.mcap")
+            stem = "detect" if moves == 8 else f"detect{moves}moves"
+            path = os.path.join(directory, f"{stem}_{name}_{seed}.mcap")
             try:
                 if not os.path.exists(path):
-                    simulate_reachable(path, spec, seed, moves=8)
+                    simulate_reachable(path, spec, seed, moves=moves)
                 diag = diagnose_log(path, model=spec.model, settings=DiagnosisSettings(resimulate=False, max_steps=1),
                                     progress=False)
             except Exception as exc:            # a lost run is a row of the table, not the end of it
@@ -112,6 +118,8 @@ def _candidate_fit(diag, spec) -> str:
         own = [k for k, n in enumerate(names) if n.split("(")[0] == spec.symbol.split("(")[0]]
         top = max(own, key=lambda k: abs(c.fit.value[k]) / max(c.fit.sigma[k], 1e-300))
         form = f"; one joint: {joint}" if joint is not None else ""
+        if "own channel" in c.note:        # held to its joint's torque channel (materiality.py)
+            form += f", own channel {c.note.split('improvement ')[1].split(' %')[0]} %"
         return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
                 f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")
     return ""
@@ -132,6 +140,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--detection", action="store_true", help="the blind diagnosis matrix on the 10x4 neck")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
+    ap.add_argument("--moves", type=int, default=8,
+                    help="--detection: waypoint moves per log (8: 15.6 s, the tests' logs; 31: 59.3 s)")
+    ap.add_argument("--cases", nargs="+", choices=sorted(DETECTION), help="--detection: only these cases")
     args = ap.parse_args(argv)
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -142,7 +153,7 @@ def main(argv=None) -> int:
     directory = args.dir or tmp.name
     os.makedirs(directory, exist_ok=True)
     if args.detection:
-        detection(directory, args.seeds)
+        detection(directory, args.seeds, args.moves, args.cases)
         if tmp is not None:
             tmp.cleanup()
         return 0

@@ -10,6 +10,7 @@ import numpy as np
 from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import located_comparison, search_shape, shape_grid
+from identification.diagnosis.materiality import candidate_decision, own_comparison
 from identification.diagnosis.support import log_support, separability_gap, unsupported_items
 from identification.diagnosis.statistics import (block_scores, clearly_nonzero, explained_share, in_band, margin_ratio,
                                                  score)
@@ -244,13 +245,15 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
-    cmp = located_comparison(ctx.compare(ctx.base, ev, added), term, ctx.data.n)
+    whole = located_comparison(ctx.compare(ctx.base, ev, added), term, ctx.data.n)
+    # a one-joint term is also measured where it acts (its joint's torque channel)
+    passes, cmp, margins, own_note = candidate_decision(ctx, whole, own_comparison(ctx, ctx.base, ev, term, added))
     every = np.ones(ctx.data.S, bool)
     bb = block_scores(ctx.base.cv, every, ctx.scales, ctx.data.n)
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
     valid, why = sign_ok(fit, term)
-    margins = ctx.candidate_margins(cmp)
+    why = "; ".join(x for x in (why, own_note) if x)
     s = ctx.settings
     sep = separability(ctx, term, fit)
     bound = s.support.max_explained
@@ -261,7 +264,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
         margins["separability"] = (-math.inf if any(x.unsupported for x in carried)
                                    else margin_ratio(1.0 - max(x.explained for x in carried), 1.0 - bound))
     separable = not any(x.explained > bound or x.unsupported for x in carried)
-    passes = valid and ctx.candidate_significant(cmp)
+    passes = valid and passes
     return CandidateScore(term, ev, added, best[0], score(ev.cv, every, ctx.scales, ctx.data.n), cmp.improvement,
                           cmp.holdout_improvement, ratio, cmp.p_holdout, cmp.p_train, valid,
                           passes and separable, why, margins,

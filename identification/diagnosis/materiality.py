@@ -1,0 +1,119 @@
+"""Materiality of a one-joint candidate, measured on its own channel.
+
+A term located on one joint (shape key ``joint``: one joint's side springs, one hinge's friction)
+acts on that joint's torque row only (eq 51).  Its evidence sits in one of the score's N + C
+channels, so the step's improvement of the whole score S shrinks with the number of joints: one
+joint's torque is half of S over N channels (1/6 of S on the 3-joint neck, 1/20 on the 10-joint
+one), and the 2 % minimum on S asks a one-joint effect to explain 12 % of its channel's residual on
+the former, 40 % on the latter.  This module measures such a term where it acts instead: the same
+three tests as :meth:`~identification.diagnosis.fitting.StepContext.compare` (cross-validated
+improvement, one-sided Wilcoxon over the held-out chunks, training F-test) on the joint's torque
+channel alone, with its own effective samples (one per 1 / (2 f_c) s of that channel) and the
+step's Bonferroni factors (the 2 N places of :func:`~identification.diagnosis.search.
+located_comparison` and the K candidates of the step).  Materiality is the 3-joint neck's: the
+channel must improve by the share of its channel that the step's minimum asks of one joint there
+(:data:`REFERENCE_TORQUE_CHANNELS` x 2 x ``min_improvement``: 12 % at the default 2 %), and the
+whole score must not get worse on held-out data.
+
+    >>> from identification.diagnosis.materiality import own_channels, own_comparison
+    >>> own_channels(term, n_joints=10)          # doctest: +SKIP
+    [4]
+    >>> cmp = own_comparison(ctx, ctx.base, evaluated, term, added)      # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from identification.diagnosis.statistics import Comparison, effective_samples, f_test_p, improvement, in_band, wilcoxon_p
+
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "own_channels", "own_min_improvement", "own_comparison", "own_significant",
+           "candidate_decision"]
+
+#: The torque channels of the neck on which the step's minimum improvement was set (the paper's
+#: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
+REFERENCE_TORQUE_CHANNELS = 3
+
+
+def own_channels(term, n_joints: int) -> list[int]:
+    """0-based residual channels (of the (S, N + C) arrays) a term acts on alone: the torque
+    channel of its joint for a located term (``EffectColumns.joint_of``), else [] (the term is
+    measured on the whole score)."""
+    joint = term.identification.joint_of(dict(term.shape))
+    if joint is None or not 1 <= joint <= n_joints:
+        return []
+    return [joint - 1]
+
+
+def own_min_improvement(min_improvement: float) -> float:
+    """The improvement a one-joint term's own channel must reach: the share of one joint's channel
+    that ``min_improvement`` of S asks on the reference neck (2 x 3 x 2 % = 12 %)."""
+    return min(2 * REFERENCE_TORQUE_CHANNELS * min_improvement, 0.99)
+
+
+def _ms(res: np.ndarray, mask: np.ndarray, ch: list[int]) -> float:
+    r = res[mask][:, ch]
+    ok = np.isfinite(r)
+    return float(np.where(ok, r, 0.0).__pow__(2).sum() / max(ok.sum(), 1))
+
+
+def own_comparison(ctx, ref, cand, term, added: int) -> Comparison | None:
+    """``cand`` against ``ref`` (``Evaluated`` of the step ``ctx``) on ``term``'s own channels
+    (:func:`own_channels`), ``added`` parameters more (its columns and shape keys), p values times
+    the term's places (``EffectColumns.places``); None for a term that acts on every channel.
+
+    The F-test's degrees of freedom are the channel's effective training samples less ``added``:
+    the baseline's shared parameters are set by the other N + C - 1 channels as much as by this one,
+    so none of them is charged to it."""
+    ch = own_channels(term, ctx.data.n)
+    if not ch:
+        return None
+    split, data = ctx.split, ctx.data
+    every = np.ones(data.S, bool)
+    d = np.nan_to_num(ref.cv[:, ch]) ** 2 - np.nan_to_num(cand.cv[:, ch]) ** 2
+    reductions = np.bincount(split.chunk, weights=d.sum(1), minlength=split.n_chunks)
+    n_eff = effective_samples(int(split.train.sum()), data.prep.cutoffs["common"].hz, data.prep.rate_hz) * len(ch)
+    places = term.identification.places(dict(term.shape), data.n)
+    return Comparison(
+        improvement=improvement(_ms(ref.cv, every, ch), _ms(cand.cv, every, ch)),
+        holdout_improvement=improvement(_ms(ref.cv, split.holdout, ch), _ms(cand.cv, split.holdout, ch)),
+        p_holdout=min(1.0, places * wilcoxon_p(reductions)),
+        p_train=min(1.0, places * f_test_p(_ms(ref.fit.residuals(), split.train, ch),
+                                           _ms(cand.fit.residuals(), split.train, ch), added,
+                                           max(n_eff - added, 1))))
+
+
+def own_significant(own: Comparison | None, whole: Comparison, alpha: float, min_improvement: float) -> bool:
+    """A one-joint term passes on its own channel: ``own`` passes its tests at ``alpha`` (the
+    step's per-candidate level) with the channel's minimum (:func:`own_min_improvement`), and the
+    ``whole`` score does not get worse on held-out data.  False for a term without own channels."""
+    return (own is not None and whole.improvement >= 0.0
+            and own.significant(alpha, own_min_improvement(min_improvement)))
+
+
+def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[bool, Comparison, dict, str]:
+    """(passes its tests, the comparison it is held to, that comparison's margins, a note) of a
+    candidate whose ``whole``-score comparison (p values times its places) and own-channel one
+    (:func:`own_comparison`, None for a term acting everywhere) were measured at step ``ctx``.
+
+    A term with own channels passes on either: the whole score (the step's rule) or its own
+    channel (:func:`own_significant`); the one with the larger margin in borderline bands is the
+    one it is held to and reported with (its p values; the improvement stays the whole score's,
+    which ranks the step's candidates)."""
+    s = ctx.settings
+    margins = ctx.candidate_margins(whole)
+    if own is None:
+        return ctx.candidate_significant(whole), whole, margins, ""
+    own_min = own_min_improvement(s.min_improvement)
+    own_margins = own.margins(ctx.alpha_candidate, own_min)
+    if whole.improvement < 0:
+        own_margins["whole_improvement"] = -np.inf
+    band = (s.borderline, s.borderline_decades)
+    if in_band(own_margins, *band) <= in_band(margins, *band):
+        return ctx.candidate_significant(whole), whole, margins, ""
+    note = (f"measured on its own channel (the joint's torque): improvement {100 * own.improvement:.1f} % "
+            f"(minimum {100 * own_min:.0f} %), whole score {100 * whole.improvement:.2f} %")
+    return own_significant(own, whole, ctx.alpha_candidate, s.min_improvement), \
+        dataclasses.replace(whole, p_holdout=own.p_holdout, p_train=own.p_train), own_margins, note
