@@ -194,7 +194,8 @@ def _solve(ev: _Evaluator, layout: Layout, x0, scale, s: OutputErrorSettings):
         raise ValueError(f"output-error: the start of the fit cannot be simulated ({ev.rejected[-1]})")
     # near the noise floor (cost about n / 2) an updated Jacobian may declare convergence
     return solver.solve(fun, jac, x0, layout.lower, layout.upper, scale, max_evaluations=s.max_evaluations,
-                        xtol=s.xtol, ftol=s.ftol, r0=r0, trusted_below=0.5 * n * s.misfit_ratio)
+                        xtol=s.xtol, ftol=s.ftol, r0=r0, trusted_below=0.5 * n * s.misfit_ratio,
+                        floor=0.5 * n)
 
 
 def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
@@ -226,9 +227,11 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     notes = list(notes)
     from neck_sim.mjcf import integrator_for
 
-    if not sol.converged:
+    if not sol.converged and sol.nfev >= s.max_evaluations:
         notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} trial steps (--max-evaluations); "
                      "the values and any misfit below are those of an unfinished fit")
+    elif not sol.converged:
+        notes.append(f"NOT CONVERGED: {sol.message}; run `neck-sim diagnose` on the logs")
     wanted = integrator_for(layout.plant(x)[0])
     if wanted != integrator:
         notes.append(f"integrator: the fit ran on {integrator} (the plant's choice for the nominal constants); at "
