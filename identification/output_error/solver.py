@@ -4,14 +4,19 @@ Every residual evaluation of the output-error fit is a rollout of every log and 
 forward differences are p of them, so the count of finite-difference Jacobians sets the cost.
 This solver takes one at the start and then corrects it after every trial step, accepted or
 not, by Broyden's rank-one update (J += ((r_t - r) - J dx) dx^T / dx^T dx, "good" Broyden, in the
-scaled variables), refreshing it by finite differences only when a step on an updated Jacobian
-is rejected.  Steps solve (J^T J + mu diag(J^T J)) dx = -J^T r in variables scaled by ``scale``
-and are clipped to the box; a trial whose residuals are not finite (a diverging rollout) is a
-rejected step.  The cost is 0.5 |r|^2 of noise-weighted residuals (half a chi-square), so its tolerance
-``ftol`` is absolute: the solver stops when the Gauss-Newton step of the current Jacobian
-predicts a decrease below ``ftol`` (0.01: the optimum within about 0.14 sigma along that step),
-when an accepted step lowers the cost by less than ``ftol`` or moves every scaled parameter by
-less than ``xtol`` (relative), or after ``max_evaluations`` trial steps.
+scaled variables), refreshing it by finite differences only when the updated one stops
+describing the residuals (a step on it rejected, a step achieving less than
+:data:`RHO_REFRESH` of its predicted decrease, or, above the trusted cost, its Gauss-Newton
+step no longer seeing the floor: :data:`PROGRESS_REFRESH`).  Steps solve (J^T J + mu
+diag(J^T J)) dx = -J^T r in variables scaled by ``scale`` and are clipped to the box; a trial
+whose residuals are not finite (a diverging rollout) is a rejected step that shrinks a trust
+radius along its direction (:data:`DIVERGED_SHRINK`).  The cost is 0.5 |r|^2 of noise-weighted
+residuals (half a chi-square), so its tolerance ``ftol`` is absolute: the solver stops when the
+Gauss-Newton step of a trusted Jacobian predicts a decrease below ``ftol`` (0.01: the optimum
+within about 0.14 sigma along that step), when an accepted step lowers the cost by less than
+``ftol`` or moves every scaled parameter by less than ``xtol`` (relative), or after
+``max_evaluations`` trial steps; a stop above ``trusted_below`` (1.5 times the noise floor) is
+"stalled", not converged.
 
 Why not scipy: ``scipy.optimize.least_squares`` asks for a Jacobian at every accepted step and
 never shows its ``jac`` the residuals of rejected trials, so a Broyden update cannot live in that
