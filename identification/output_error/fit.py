@@ -4,8 +4,8 @@
 from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
 batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
-updated by Broyden's rank-one formula after every trial step (a fresh one only after a
-step on an updated Jacobian is rejected).  The integrator is fixed once per fit (the plant's
+updated by Broyden's rank-one formula after every trial step (a fresh one only when the updated
+one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator is fixed once per fit (the plant's
 choice for the nominal constants, :func:`choose_integrator`, or given): the model is continuous in every
 parameter.  A candidate whose re-simulation diverges gets NaN residuals, which the solver treats
 as a rejected step (its damping grows); its reason is kept in ``rejected``.
