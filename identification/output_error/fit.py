@@ -5,10 +5,11 @@ from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
 batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
 updated by Broyden's rank-one formula after every trial step (a fresh one only when the updated
-one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator is fixed once per fit (the plant's
-choice for the nominal constants, :func:`choose_integrator`, or given): the model is continuous in every
-parameter.  A candidate whose re-simulation diverges gets NaN residuals, which the solver treats
-as a rejected step (its damping grows); its reason is kept in ``rejected``.
+one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator
+is fixed once per fit (the plant's choice for the nominal constants, :func:`choose_integrator`,
+or given): the model is continuous in every parameter.  A candidate whose re-simulation diverges
+gets NaN residuals, which the solver treats as a rejected step (its trust radius shrinks); its
+reason is kept in ``rejected``.
 """
 
 from __future__ import annotations
@@ -243,7 +244,7 @@ def _fit(measured, layout: Layout, x0, s: OutputErrorSettings, progress: bool, n
     notes = list(notes)
     from neck_sim.mjcf import integrator_for
 
-    if not sol.converged and sol.nfev >= s.max_evaluations:
+    if not sol.converged and sol.message.startswith("stopped after"):
         notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} trial steps (--max-evaluations); "
                      "the values and any misfit below are those of an unfinished fit")
     elif not sol.converged:
