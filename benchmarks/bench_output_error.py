@@ -25,6 +25,7 @@ the same parameter sets.
     python benchmarks/bench_output_error.py                    # the whole 85 s run (long: sysid)
     python benchmarks/bench_output_error.py --duration 10      # its first 10 s
     python benchmarks/bench_output_error.py --no-sysid --json out.json
+    python benchmarks/bench_output_error.py --log LOG --duration 30 --no-one-thread --cost-sets 1
 """
 
 from __future__ import annotations
@@ -120,9 +121,10 @@ def sysid(log, ls, threads: int, max_iter: int):
     x0, _ = start_point(layout, [ls])
     integrator = choose_integrator(layout, OutputErrorSettings())
     sigmas = noise_sigmas(nominal)
-    count = [0]
+    count, engine_cpu = [0], [0.0]
 
     def residual_fn(x, _params):
+        cpu0 = time.process_time()
         X = np.asarray(x, dtype=float)
         cols = X.reshape(-1, 1) if X.ndim == 1 else X
         sets = [layout.plant(cols[:, i]) for i in range(cols.shape[1])]
@@ -134,13 +136,17 @@ def sysid(log, ls, threads: int, max_iter: int):
             r = residuals([meas], [(out.encoders[i], out.camera_alpha[i])], sigmas)
             R.append(np.concatenate([r["encoders"], r["camera"]]))
         R = np.stack(R, axis=1)
+        engine_cpu[0] += time.process_time() - cpu0
         return [R[:, 0] if X.ndim == 1 else R], None, None
 
     # the fit's box below (0); above, ten times the fit's parameter scale (sysid's optimiser
     # needs a finite box)
     floor = np.array([SCALE_FLOOR[n.split("(")[0]] for n in layout.names])
     params = mjsysid.ParameterDict({"x": mjsysid.Parameter("x", x0, layout.lower, 10 * np.maximum(np.abs(x0), floor))})
-    with _Clock() as c:
+    from identification.diagnosis.pipeline import single_thread
+
+    # the fit's BLAS setting (one thread: OpenBLAS threads only spin on these small products)
+    with single_thread(), _Clock() as c:
         try:
             opt, result = mjsysid.optimize(params, residual_fn, optimizer="mujoco", verbose=False, max_iters=max_iter)
             x = opt.as_vector()
@@ -150,7 +156,7 @@ def sysid(log, ls, threads: int, max_iter: int):
         except Exception as exc:          # a crash is a result of this arm, reported in the table
             x, ci, status = None, None, f"crashed: {type(exc).__name__}: {str(exc).splitlines()[0][:120]}"
     values = {} if x is None else {sym: layout.group(x, sym) for sym, _, _ in GROUPS}
-    return values, count[0], c, status
+    return values, count[0], c, status, engine_cpu[0]
 
 
 def rollout_cost(log, truth, sets: int, threads: tuple) -> list:
@@ -195,6 +201,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sysid-max-iter", type=int, default=100, help="mujoco.sysid's Gauss-Newton iterations")
     ap.add_argument("--max-evaluations", type=int, default=30, help="the output-error fit's trial steps")
     ap.add_argument("--cost-sets", type=int, default=4, help="parameter sets of the per-rollout cost")
+    ap.add_argument("--one-thread", action=argparse.BooleanOptionalAction, default=True,
+                    help="also fit on 1 rollout thread (the scaling row; --no-one-thread on long windows)")
     ap.add_argument("--json", help="write the numbers as JSON")
     args = ap.parse_args(argv)
 
@@ -210,6 +218,7 @@ def main(argv=None) -> int:
     T, F = len(log.motors.t), len(log.camera.t)
     print(f"log: {os.path.basename(path)}, {T / log.params.control.rate_hz:.1f} s ({T} motor samples, {F} camera "
           f"frames), 16 parameters (f_s, k, lambda, c_a x 4 cables), start: the least squares")
+    print(f"load average at the start (1, 5, 15 min): {', '.join(f'{v:.2f}' for v in os.getloadavg())}")
     ls, ls_values, ls_clock = least_squares(log)
     head = f"{'method':38} {'f_s %':>8} {'k %':>8} {'lambda %':>9} {'c_a %':>8} {'rollouts':>9} {'CPU s':>8} " \
            f"{'wall s':>8} {'CPU/LS':>7}"
@@ -226,13 +235,15 @@ def main(argv=None) -> int:
               + (f"  {note}" if note else ""), flush=True)
 
     row("least squares (eqs 44-57), baseline", errors(ls_values, truth), None, ls_clock)
-    oe = {}
-    for threads in (2, 1):
+    oe, breakdown = {}, []
+    for threads in (2, 1) if args.one_thread else (2,):
         values, n, clock, res = output_error(log, ls, threads, args.max_evaluations)
         oe[threads] = clock
         row(f"neck-sim output-error, {threads} thread{'s' if threads > 1 else ''}", errors(values, truth), n, clock,
             "" if res.converged else "not converged")
-    summary = {"oe_wall_1_over_2_threads": oe[1].wall / oe[2].wall}
+        breakdown.append((f"output-error, {threads} thread{'s' if threads > 1 else ''}", clock.cpu, res.rollout_cpu_s,
+                          n, f"{res.trial_steps} trial steps, {res.iterations} finite-difference Jacobian(s)"))
+    summary = {"oe_wall_1_over_2_threads": oe[1].wall / oe[2].wall} if 1 in oe else {}
     cost = rollout_cost(log, truth, args.cost_sets, (1, 2))
     sys_row = None
     if not args.no_sysid:
@@ -242,15 +253,24 @@ def main(argv=None) -> int:
         except ImportError:
             have = False
         if have:
-            values, n, clock, status = sysid(log, ls, 2, args.sysid_max_iter)
+            values, n, clock, status, engine_cpu = sysid(log, ls, 2, args.sysid_max_iter)
             row("mujoco.sysid (GN), 2 threads", errors(values, truth), n, clock, "" if status == "ok" else status)
             sys_row = rows[-1]
+            breakdown.append(("mujoco.sysid, 2 threads", clock.cpu, engine_cpu, n, "residual_fn: rollouts + residuals"))
         else:
             print("mujoco.sysid is not installed with its extras (pip install .[sysid]): skipped", file=sys.stderr)
     if sys_row is not None:
         summary["oe_cpu_over_sysid"] = oe[2].cpu / sys_row[3].cpu
         print(f"output-error CPU / mujoco.sysid CPU (2 threads): {summary['oe_cpu_over_sysid']:.3f} (target <= 0.1)")
-    print(f"output-error wall time, 1 thread / 2 threads: {summary['oe_wall_1_over_2_threads']:.2f}")
+    if 1 in oe:
+        print(f"output-error wall time, 1 thread / 2 threads: {summary['oe_wall_1_over_2_threads']:.2f}")
+    print(f"load average at the end (1, 5, 15 min): {', '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print("\nwhere the CPU goes (the same engine, plants built per rollout, for both methods)")
+    head = f"{'fit':28} {'CPU s':>8} {'rollouts':>9} {'in rollouts':>12} {'per rollout':>12} {'rest':>7}  what"
+    print(head)
+    print("-" * len(head))
+    for name, cpu, in_rollouts, n, what in breakdown:
+        print(f"{name:28} {cpu:8.1f} {n:9d} {in_rollouts:12.1f} {in_rollouts / n:12.3f} {cpu - in_rollouts:7.2f}  {what}")
     print(f"\nper rollout ({args.cost_sets} parameter sets, {T / log.params.control.rate_hz:.1f} s each)")
     head = f"{'engine':44} {'CPU s':>8} {'wall s':>8} {'wall / batch 1 thread':>22}"
     print(head)
@@ -261,7 +281,9 @@ def main(argv=None) -> int:
         from neck_sim.atomic import atomic_write_json
 
         atomic_write_json(args.json, {
-            "log_s": T / log.params.control.rate_hz, "summary": summary,
+            "log_s": T / log.params.control.rate_hz, "summary": summary, "load_average_end": list(os.getloadavg()),
+            "cpu_breakdown": [{"fit": name, "cpu_s": cpu, "rollouts_cpu_s": r, "rollouts": n}
+                              for name, cpu, r, n, _ in breakdown],
             "fits": [{"method": name, "max_rel_error_pct": err, "rollouts": n, "cpu_s": clock.cpu,
                       "wall_s": clock.wall, "note": note} for name, err, n, clock, note in rows],
             "per_rollout": [{"engine": name, "cpu_s": cpu, "wall_s": wall} for name, cpu, wall in cost]})

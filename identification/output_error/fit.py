@@ -4,11 +4,12 @@
 from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
 batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
-updated by Broyden's rank-one formula after every trial step (a fresh one only after a
-step on an updated Jacobian is rejected).  The integrator is fixed once per fit (the plant's
-choice for the nominal constants, :func:`choose_integrator`, or given): the model is continuous in every
-parameter.  A candidate whose re-simulation diverges gets NaN residuals, which the solver treats
-as a rejected step (its damping grows); its reason is kept in ``rejected``.
+updated by Broyden's rank-one formula after every trial step (a fresh one only when the updated
+one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator
+is fixed once per fit (the plant's choice for the nominal constants, :func:`choose_integrator`,
+or given): the model is continuous in every parameter.  A candidate whose re-simulation diverges
+gets NaN residuals, which the solver treats as a rejected step (its trust radius shrinks); its
+reason is kept in ``rejected``.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ class OutputErrorResult:
     notes: tuple = ()
     simulated_s: float = 0.0   # s of plant time re-simulated (rollouts x their spans)
     trial_steps: int = 0       # residual evaluations of the solver's steps (each one rollout per log)
+    rollout_cpu_s: float = 0.0  # of cpu_s, the rollouts' (plants built and simulated)
 
     @property
     def converged(self) -> bool:
@@ -80,7 +82,7 @@ class OutputErrorResult:
                 "rollouts": self.rollouts, "simulated_s": self.simulated_s, "iterations": self.iterations, "cpu_s": self.cpu_s,
                 "integrator": self.integrator, "status": self.status, "converged": self.converged,
                 "logs": list(self.logs),
-                "notes": list(self.notes), "trial_steps": self.trial_steps,
+                "notes": list(self.notes), "trial_steps": self.trial_steps, "rollout_cpu_s": self.rollout_cpu_s,
                 "ci95_method": "1.96 sigma, sigma from the Newey-West sandwich (J^T J)^-1 S (J^T J)^-1 at the "
                                "optimum (J of the noise-weighted residuals, Broyden-updated; S the Bartlett long-run "
                                "covariance of the per-sample scores)"}
@@ -113,7 +115,7 @@ class _Evaluator:
     def __init__(self, measured, layout: Layout, integrator: str, bar):
         self.measured, self.layout, self.integrator, self.bar = measured, layout, integrator, bar
         self.sigmas = noise_sigmas(layout.params)
-        self.rollouts, self.rejected, self.simulated_s = 0, [], 0.0
+        self.rollouts, self.rejected, self.simulated_s, self.cpu_s = 0, [], 0.0, 0.0
 
     def runs(self, X) -> tuple[list, list]:
         """Per vector of X (K, p): its runs [(theta, alpha) per experiment] or None, and reasons."""
@@ -127,6 +129,7 @@ class _Evaluator:
                 reasons[k] = f"not a valid plant: {exc}"
         ok = [k for k in range(K) if plants[k] is not None]
         runs = [[] if plants[k] is not None else None for k in range(K)]
+        cpu0 = time.process_time()
         for meas in self.measured:
             out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
             self.rollouts += len(ok)
@@ -138,6 +141,7 @@ class _Evaluator:
                     runs[k], reasons[k] = None, f"{meas.name}: {out.reasons[i]}"
                 else:
                     runs[k].append((out.encoders[i], out.camera_alpha[i]))
+        self.cpu_s += time.process_time() - cpu0
         if self.bar is not None:
             self.bar.update(len(ok) * len(self.measured))
         return runs, reasons
@@ -194,7 +198,8 @@ def _solve(ev: _Evaluator, layout: Layout, x0, scale, s: OutputErrorSettings):
         raise ValueError(f"output-error: the start of the fit cannot be simulated ({ev.rejected[-1]})")
     # near the noise floor (cost about n / 2) an updated Jacobian may declare convergence
     return solver.solve(fun, jac, x0, layout.lower, layout.upper, scale, max_evaluations=s.max_evaluations,
-                        xtol=s.xtol, ftol=s.ftol, r0=r0, trusted_below=0.5 * n * s.misfit_ratio)
+                        xtol=s.xtol, ftol=s.ftol, r0=r0, trusted_below=0.5 * n * s.misfit_ratio,
+                        floor=0.5 * n)
 
 
 def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
@@ -207,16 +212,29 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     Gauss-Newton step from there lands at 1.08 times the floor, so no continuation over growing
     spans is needed -- provided the fit runs on the plant's integrator (:func:`choose_integrator`).
     ValueError when the start cannot be simulated; later diverging candidates are rejected steps."""
-    from tqdm.auto import tqdm
+    from identification.diagnosis.pipeline import single_thread
 
-    s = settings or OutputErrorSettings()
+    # BLAS on one thread: the solver's and the intervals' products are (n, 16) by (16, 16), for
+    # which OpenBLAS threads only spin (the sandwich took 0.44 s of CPU on two threads of a
+    # loaded 2-core machine, 0.018 s on one); MuJoCo's batch threads are its own
+    with single_thread():
+        return _fit(measured, layout, x0, settings or OutputErrorSettings(), progress, notes)
+
+
+def _fit(measured, layout: Layout, x0, s: OutputErrorSettings, progress: bool, notes) -> OutputErrorResult:
     x = np.clip(np.asarray(x0, dtype=float), layout.lower, layout.upper)
     start = x.copy()
     integrator = choose_integrator(layout, s)
     scale = _scales(layout, x)
     cpu0 = time.process_time()
-    with tqdm(desc="output-error fit", unit="rollout", disable=not progress, leave=False) as bar:
-        ev = _Evaluator(measured, layout, integrator, bar)
+    if progress:
+        from tqdm.auto import tqdm
+
+        with tqdm(desc="output-error fit", unit="rollout", leave=False) as bar:
+            ev = _Evaluator(measured, layout, integrator, bar)
+            sol = _solve(ev, layout, x, scale, s)
+    else:
+        ev = _Evaluator(measured, layout, integrator, None)
         sol = _solve(ev, layout, x, scale, s)
     x, r = sol.x, sol.r
     res = _split(r, measured)
@@ -226,9 +244,11 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     notes = list(notes)
     from neck_sim.mjcf import integrator_for
 
-    if not sol.converged:
+    if not sol.converged and sol.message.startswith("stopped after"):
         notes.append(f"NOT CONVERGED: the fit stopped after {s.max_evaluations} trial steps (--max-evaluations); "
                      "the values and any misfit below are those of an unfinished fit")
+    elif not sol.converged:
+        notes.append(f"NOT CONVERGED: {sol.message}; run `neck-sim diagnose` on the logs")
     wanted = integrator_for(layout.plant(x)[0])
     if wanted != integrator:
         notes.append(f"integrator: the fit ran on {integrator} (the plant's choice for the nominal constants); at "
@@ -238,7 +258,7 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
                              tuple(misfit_lines(ratios, [e.name for e in measured], s.misfit_ratio)),
                              tuple(ev.rejected), ev.rollouts, sol.njev, time.process_time() - cpu0,
                              integrator, sol.message, tuple(e.name for e in measured), tuple(notes),
-                             ev.simulated_s, sol.nfev)
+                             ev.simulated_s, sol.nfev, ev.cpu_s)
 
 
 def _rollout(replay, params, effects, integrator):
