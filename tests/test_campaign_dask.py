@@ -71,16 +71,49 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _dask(command: str, env=None, **fmt):
-    """``command`` (``dask ...``) as a process of its own group, quiet; ``env``: extra variables."""
+def _dask(command: str, env=None, log=None, **fmt):
+    """``command`` (``dask ...``) as a process of its own group; ``env``: extra variables; its
+    output (Dask's log) goes to the file ``log``, or nowhere."""
     import os
     import subprocess
     import sys
 
     argv = command.format(**fmt).split()
     module = {"scheduler": "distributed.cli.dask_scheduler", "worker": "distributed.cli.dask_worker"}[argv[1]]
-    return subprocess.Popen([sys.executable, "-m", module, *argv[2:]], start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, **(env or {})})
+    out = subprocess.DEVNULL if log is None else open(log, "w")
+    try:
+        return subprocess.Popen([sys.executable, "-m", module, *argv[2:]], start_new_session=True,
+                                stdout=out, stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
+    finally:
+        if log is not None:
+            out.close()
+
+
+def _log_tails(*logs, lines: int = 25) -> str:
+    """The last ``lines`` lines of each log file, headed by its name (for a failure message)."""
+    out = []
+    for log in logs:
+        text = log.read_text(errors="replace").splitlines() if log.exists() else ["(no log)"]
+        out.append(f"--- {log.name} (last {lines} lines) ---\n" + "\n".join(text[-lines:]))
+    return "\n".join(out)
+
+
+def _wait_for_nannies(address: str, n: int, timeout: float) -> None:
+    """Return once the scheduler at ``address`` has ``n`` workers whose nannies have finished
+    starting.  A worker registers with the scheduler before its nanny has finished starting (the
+    nanny waits for the worker's first message); a worker that dies in between is not restarted:
+    its nanny fails to start and closes (``nanny-start-failed``), and the cluster has no worker."""
+    import time
+
+    with distributed.Client(address, timeout=timeout, set_as_default=False) as client:
+        client.wait_for_workers(n, timeout=timeout)
+        deadline = time.monotonic() + timeout
+        while True:
+            status = client.run(lambda dask_worker: dask_worker.status.name, nanny=True)   # nanny address -> status
+            if len(status) >= n and all(s == "running" for s in status.values()):
+                return
+            assert time.monotonic() < deadline, f"nannies not running after {timeout:g} s: {status}"
+            time.sleep(0.05)
 
 
 def _kill_group(proc) -> None:
@@ -115,9 +148,10 @@ def _kill_after(proc, seconds: float):
     return t
 
 
-def _bounded(fn, *args, seconds: float = 30):
+def _bounded(fn, *args, seconds: float = 30, context=lambda: ""):
     """The exception ``fn(*args)`` raises, run in a thread; fails the test if it is still waiting
-    after ``seconds`` (the fixture then kills the cluster, which ends the thread)."""
+    after ``seconds`` (the fixture then kills the cluster, which ends the thread).  ``context()``:
+    what a failure message adds (the cluster's logs)."""
     import threading
 
     box = []
@@ -131,8 +165,8 @@ def _bounded(fn, *args, seconds: float = 30):
     t = threading.Thread(target=target, daemon=True)
     t.start()
     t.join(seconds)
-    assert not t.is_alive(), f"still waiting after {seconds} s"
-    assert box, "no error raised"
+    assert not t.is_alive(), f"still waiting after {seconds} s\n{context()}"
+    assert box, f"no error raised\n{context()}"
     return box[0]
 
 
@@ -209,19 +243,25 @@ def test_a_scheduler_that_dies_ends_the_campaign_with_one_line(separate_cluster)
     assert waited < 5, waited
 
 
-def test_a_job_that_kills_its_dask_worker_fails_naming_it_after_allowed_failures():
+def test_a_job_that_kills_its_dask_worker_fails_naming_it_after_allowed_failures(tmp_path):
     import os
 
     # allowed-failures set where the scheduler starts, as docs/campaigns.md says; the nanny
-    # restarts the worker after each death
+    # restarts the worker after each death, once it has finished starting (_wait_for_nannies)
     port = _free_port()
-    sched = _dask(SCHEDULER, env={"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "1"}, port=port, dash=_free_port())
-    worker = _dask(WORKER, port=port)
+    logs = (tmp_path / "scheduler.log", tmp_path / "worker.log")
+    sched = _dask(SCHEDULER, env={"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "1"}, log=logs[0], port=port,
+                  dash=_free_port())
+    worker = _dask(WORKER, log=logs[1], port=port)
     try:
-        spec = ExecutorSpec(cluster=f"tcp://127.0.0.1:{port}", connect_timeout=30, worker_timeout=30)
+        address = f"tcp://127.0.0.1:{port}"
+        _wait_for_nannies(address, 1, timeout=30)
+        spec = ExecutorSpec(cluster=address, connect_timeout=30, worker_timeout=30)
         with open_executor(spec) as ex:
-            exc = _bounded(lambda: run_campaign(os._exit, [3], ex, labels=["crash"], progress=False), seconds=40)
-        assert isinstance(exc, RuntimeError) and re.match(r"job 'crash' failed: KilledWorker: .* on 2 different workers", str(exc)), exc
+            exc = _bounded(lambda: run_campaign(os._exit, [3], ex, labels=["crash"], progress=False), seconds=40,
+                           context=lambda: _log_tails(*logs))
+        assert isinstance(exc, RuntimeError) and re.match(r"job 'crash' failed: KilledWorker: .* on 2 different workers",
+                                                          str(exc)), f"{exc!r}\n{_log_tails(*logs)}"
     finally:
         for p in (worker, sched):
             _kill_group(p)

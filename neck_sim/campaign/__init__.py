@@ -27,8 +27,10 @@ Faults end the campaign loudly and leave nothing behind (docs/campaigns.md):
 * Ctrl-C or SIGTERM in the caller terminates the local workers at once (they ignore Ctrl-C
   themselves and, on Linux, die with the process that started them even if it is killed hard);
 * on Dask, a worker that dies is retried by the scheduler (``distributed.scheduler.allowed-failures``,
-  3 by default, then ``KilledWorker`` naming the job); a cluster left without workers for
-  ``ExecutorSpec.worker_timeout`` s, or a lost scheduler, fails every unfinished job with a
+  3 by default, then ``KilledWorker`` naming the job), but only once its nanny has finished
+  starting: a worker registers with the scheduler a moment before its nanny is up, and a worker
+  that dies in that moment ends its nanny too (distributed 2026.8); a cluster left without workers
+  for ``ExecutorSpec.worker_timeout`` s, or a lost scheduler, fails every unfinished job with a
   one-line :class:`ClusterError`.
 
 Modules: :mod:`~neck_sim.campaign.spec` (where: :class:`ExecutorSpec` and the errors),
