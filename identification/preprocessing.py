@@ -172,17 +172,35 @@ class CutoffChoice(NamedTuple):
 
 
 def lowpass(x: npt.ArrayLike, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
-    """Zero-phase Butterworth low-pass (forward and reverse, ``sosfiltfilt``) along ``axis``."""
+    """Zero-phase Butterworth low-pass (forward and reverse) along ``axis``: ``scipy.signal.
+    sosfiltfilt``'s arithmetic (odd extension of 3 x its taps at both ends, each pass started from
+    ``sosfilt_zi`` times the first sample), bit for bit, with the filter's design and initial state
+    computed once per (order, cutoff, rate): the residual analysis filters one short signal at 120
+    cutoffs on every bootstrap replicate, where those cost more than the filtering."""
     nyq = 0.5 * fs
     if not 0 < cutoff_hz < nyq:
         raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
-    return signal.sosfiltfilt(_butter_sos(int(order), float(cutoff_hz), float(fs)).copy(), x, axis=axis)
+    sos, zi, edge = _butter_sos(int(order), float(cutoff_hz), float(fs))
+    x0 = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
+    if x0.shape[0] <= edge:
+        raise ValueError(f"lowpass: {x0.shape[0]} samples; a order-{order} zero-phase filter needs more than {edge}")
+    ext = np.concatenate((2 * x0[:1] - x0[edge:0:-1], x0, 2 * x0[-1:] - x0[-2:-(edge + 2):-1]), axis=0)
+    z = zi.reshape(zi.shape + (1,) * (x0.ndim - 1))
+    sos = sos.copy()                     # sosfilt's buffers must be writable; the cached design is not
+    y, _ = signal.sosfilt(sos, ext, axis=0, zi=z * ext[:1])
+    y, _ = signal.sosfilt(sos, y[::-1], axis=0, zi=z * y[-1:])
+    return np.moveaxis(y[::-1][edge:-edge], 0, axis)
 
 
 @functools.lru_cache(maxsize=256)
-def _butter_sos(order: int, cutoff_hz: float, fs: float) -> np.ndarray:
-    # designed once per (order, cutoff, rate): the design costs more than filtering a short signal
-    return signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+def _butter_sos(order: int, cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """(sos, sosfilt_zi, pad length) of a Butterworth low-pass, as ``sosfiltfilt`` derives them."""
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    sos.flags.writeable = False
+    zi = signal.sosfilt_zi(sos)
+    zi.flags.writeable = False
+    return sos, zi, 3 * ntaps
 
 
 def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates: int = 120,
