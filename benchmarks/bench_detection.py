@@ -28,11 +28,17 @@ Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5
 sequences,multisine] [--jsonl PATH] [--from-jsonl PATH] [--docs docs/diagnosis.md] [--skip-timing]``;
 ``--from-jsonl`` prints the tables of a previous run; ``--docs`` writes them, with the commit
 measured, between the ``bench_detection`` markers of a Markdown page.
+
+``--jsonl PATH`` gets one line per log as that log finishes (on local workers; on a Dask cluster,
+whose workers need not share this disk, at the end): an interrupted run keeps what it did, and a
+rerun with the same ``--jsonl`` skips the logs already there (case, seed, level, excitation; a log
+whose diagnosis raised is run again) and prints the tables of every log it asked for.
 """
 
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import sys
@@ -79,6 +85,56 @@ def _one(job):
                     "magnitude": 0.0, "symbol": None, "fitted": None, "description": f"failed: {exc}",
                     "verdict": f"failed: {type(exc).__name__}", "correct": False, "alone": False, "borderline": False,
                     "located": None, "improvement": 0.0, "leftover": [], "t_sim": 0.0, "t_diag": 0.0}
+
+
+def job_key(row_or_job) -> tuple:
+    """(case, seed, level, excitation) of a job or of a JSONL row: what a rerun skips when done."""
+    if isinstance(row_or_job, dict):
+        r = row_or_job
+        return r["case"], int(r["seed"]), float(r["level"]), r.get("excitation", "sequences")
+    name, seed, level, excitation = (*row_or_job, "sequences")[:4]
+    return name, int(seed), float(level), excitation
+
+
+def read_jsonl(path: str) -> list:
+    """The rows of a JSONL file (none when it does not exist yet); a torn last line (a run killed
+    mid-write) is skipped."""
+    if not os.path.exists(path):
+        return []
+    rows = []
+    with open(path) as fh:
+        for line in fh:
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def append_jsonl(path: str, rows: list) -> None:
+    """Append whole lines under an exclusive lock, in one write: workers finishing together never
+    interleave their lines."""
+    data = "".join(json.dumps(r) + "\n" for r in rows).encode()
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        os.write(fd, data)
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class Recorded:
+    """``_one`` that appends its row to ``path`` as soon as the log is diagnosed (picklable: it
+    travels to the local workers, which share this disk)."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def __call__(self, job):
+        row = _one(job)
+        append_jsonl(self.path, [row])
+        return row
 
 
 def _one_in(job, directory):
@@ -393,14 +449,26 @@ def main(argv=None) -> int:
         jobs += [("none", s, 1.0, excitation) for s in range(1, args.negatives + 1)]
         jobs += [(c, s, L, excitation) for L in sorted(levels, reverse=True) for c in on for s in seeds]
         jobs += [(c, s, 1.0, excitation) for c in pairs for s in seeds]
-    t0 = time.perf_counter()
-    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g} {e}" for c, s, L, e in jobs],
-                           desc="blind diagnoses")
-    wall = time.perf_counter() - t0
+    wanted = {job_key(j) for j in jobs}
+    done = {}
     if args.jsonl:
-        with open(args.jsonl, "a") as fh:
-            fh.writelines(json.dumps(r) + "\n" for r in results)
-    text = report(results, f"{wall:.0f} s on {where.describe()}")
+        for r in read_jsonl(args.jsonl):          # the last row of a log wins
+            if job_key(r) in wanted and not str(r.get("verdict", "")).startswith("failed"):
+                done[job_key(r)] = r
+        if done:
+            print(f"{args.jsonl}: {len(done)} of the {len(jobs)} logs already there, skipped", file=sys.stderr)
+    todo = [j for j in jobs if job_key(j) not in done]
+    fn = Recorded(args.jsonl) if args.jsonl and args.cluster is None else _one
+    t0 = time.perf_counter()
+    fresh = run_campaign(fn, todo, where, labels=[f"{c} seed {s} level {L:g} {e}" for c, s, L, e in todo],
+                         desc="blind diagnoses") if todo else []
+    wall = time.perf_counter() - t0
+    if args.jsonl and args.cluster is not None:
+        append_jsonl(args.jsonl, fresh)
+    by_key = {**done, **{job_key(r): r for r in fresh}}
+    results = [by_key[job_key(j)] for j in jobs if job_key(j) in by_key]
+    text = report(results, f"{wall:.0f} s on {where.describe()} for the {len(fresh)} logs run now"
+                  + (f", {len(done)} read back from {args.jsonl}" if done else ""))
     print(text)
     if args.docs:
         write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]))
