@@ -168,7 +168,9 @@ def _one_in(job, directory):
     where = (f.joints or f.cables) if f is not None else None
     truth_where = [j + 1 for j in spec.joints] or [c + 1 for c in spec.cables] or None
     lo = diag.leftover
-    return {"case": name, "seed": seed, "level": level, "excitation": excitation, "expect": spec.expect,
+    places = {f"cable {c + 1}" for c in spec.cables} | {f"joint {j + 1}" for j in spec.joints}
+    return {"gaps": [g.describe() for g in diag.gaps if g.where in places],     # what the log lacks where it acts
+            "case": name, "seed": seed, "level": level, "excitation": excitation, "expect": spec.expect,
             "magnitude": spec.magnitude, "symbol": spec.symbol, "fitted": fitted, "description": spec.description,
             "verdict": "+".join(names), "correct": correct(spec.expect, names), "alone": alone(spec.expect, names),
             "borderline": diag.borderline,
@@ -270,6 +272,11 @@ def report(results, how: str) -> str:
             out.append("**Effects of the vocabulary** (correct: the verdict's first name; named alone: the verdict "
                        "is that name and nothing else)\n")
             out.append(limit_table(rx, levels))
+            why = [r for r in ins if not r["correct"] and r.get("gaps")]
+            if why:
+                out.append("\nNot named where the log says why (its gap lines where the effect acts):\n")
+                out += [f"- {r['case']} seed {r['seed']} level {r['level']:g}: `{r['verdict']}`; "
+                        + "; ".join(r["gaps"]) for r in why]
             out.append(f"\nNamed alone in {sum(r['alone'] for r in ins)}/{len(ins)} logs "
                        f"({100 * np.mean([r['alone'] for r in ins]):.0f} %); first name right in "
                        f"{sum(r['correct'] for r in ins)}/{len(ins)}; borderline verdicts "
@@ -420,6 +427,8 @@ def main(argv=None) -> int:
     ap.add_argument("--multisine-cases", default=None, help="cases run on the multisine (default: --cases)")
     ap.add_argument("--docs", default=None, help="write the tables into this Markdown file between its markers")
     ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
+    ap.add_argument("--block", default="bench_detection", help="with --docs: the markers' name (one block per "
+                    "excitation keeps each table with the commit it measured)")
     args = ap.parse_args(argv)
     if args.timing_only:
         print(timing())
@@ -432,7 +441,7 @@ def main(argv=None) -> int:
         print(text)
         if args.docs:
             write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
-                       commit=args.commit)
+                       name=args.block, commit=args.commit)
         return 0
     from neck_sim.campaign import ExecutorSpec, run_campaign
 
@@ -471,7 +480,8 @@ def main(argv=None) -> int:
                   + (f", {len(done)} read back from {args.jsonl}" if done else ""))
     print(text)
     if args.docs:
-        write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]))
+        write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
+                   name=args.block)
     if not args.skip_timing:
         print(timing())
         print(story())

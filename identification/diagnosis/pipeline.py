@@ -87,6 +87,9 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
         for c in st.candidates:
             if c.refused:
                 note, more = c.refusal(gaps, summary, s.support)
+            else:          # failed its tests on parameters the data could not separate: say so
+                note, more = c.unseen(summary, s.support)
+            if note:
                 notes.append(note)
                 gaps = gaps + tuple(g for g in more if g not in gaps)
     # models compared: each step's baseline and the last extension (if the last step found one)
