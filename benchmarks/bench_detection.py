@@ -274,7 +274,9 @@ def report(results, how: str) -> str:
             out.append(limit_table(rx, levels))
             why = [r for r in ins if not r["correct"] and r.get("gaps")]
             if why:
-                out.append("\nNot named where the log says why (its gap lines where the effect acts):\n")
+                out.append("\nNot named, with the log's gap lines where the hidden effect acts (a tension gap "
+                           "stops only a rest elongation and lambda; a conditioning line names the effect it is "
+                           "about):\n")
                 out += [f"- {r['case']} seed {r['seed']} level {r['level']:g}: `{r['verdict']}`; "
                         + "; ".join(r["gaps"]) for r in why]
             out.append(f"\nNamed alone in {sum(r['alone'] for r in ins)}/{len(ins)} logs "
