@@ -181,6 +181,15 @@ def _one_in(job, directory):
             "t_sim": t_sim, "t_diag": t_diag}
 
 
+def bears_on(effect: str, gap: str) -> bool:
+    """A gap line (``Gap.describe()``) that says the log cannot show ``effect``: a conditioning
+    line about it, or a cable's tension range for a rest elongation or lambda."""
+    if f"({effect})" in gap:
+        return True
+    return ("a rest elongation cannot be separated" in gap if effect == "pretension"
+            else "lambda(" in gap and "cannot be separated" in gap if effect == "tension_stiffening" else False)
+
+
 def limit_table(results, levels) -> str:
     from open_world.generator import UNEXPLAINED
 
@@ -272,13 +281,12 @@ def report(results, how: str) -> str:
             out.append("**Effects of the vocabulary** (correct: the verdict's first name; named alone: the verdict "
                        "is that name and nothing else)\n")
             out.append(limit_table(rx, levels))
-            why = [r for r in ins if not r["correct"] and r.get("gaps")]
+            why = [(r, [g for g in r.get("gaps", []) if bears_on(r["expect"], g)]) for r in ins if not r["correct"]]
+            why = [(r, g) for r, g in why if g]
             if why:
-                out.append("\nNot named, with the log's gap lines where the hidden effect acts (a tension gap "
-                           "stops only a rest elongation and lambda; a conditioning line names the effect it is "
-                           "about):\n")
-                out += [f"- {r['case']} seed {r['seed']} level {r['level']:g}: `{r['verdict']}`; "
-                        + "; ".join(r["gaps"]) for r in why]
+                out.append("\nNot named, and the log's gap lines that say it cannot show the effect where it acts:\n")
+                out += [f"- {r['case']} seed {r['seed']} level {r['level']:g}: `{r['verdict']}`; " + "; ".join(g)
+                        for r, g in why]
             out.append(f"\nNamed alone in {sum(r['alone'] for r in ins)}/{len(ins)} logs "
                        f"({100 * np.mean([r['alone'] for r in ins]):.0f} %); first name right in "
                        f"{sum(r['correct'] for r in ins)}/{len(ins)}; borderline verdicts "
