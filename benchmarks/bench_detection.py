@@ -306,10 +306,12 @@ def report(results, how: str) -> str:
     return "\n".join(out)
 
 
-def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None) -> None:
+def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None,
+               script: str | None = None) -> None:
     """Put the tables between the markers ``<!-- name: begin -->`` and ``<!-- name: end -->`` of
     ``path`` (atomic), with the commit measured (``commit``: the one a ``--from-jsonl`` run's
-    results were measured on; default the checkout's HEAD)."""
+    results were measured on; default the checkout's HEAD) and the benchmark that wrote them
+    (``script``, default ``name``)."""
     BEGIN, END = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     import subprocess
 
@@ -325,7 +327,7 @@ def write_docs(path: str, text: str, command: str, name: str = "bench_detection"
         head, dirty = "unknown", ""
     if commit is not None:                 # results of an earlier run: its commit, not the checkout's state
         head, dirty = commit, ""
-    block = (f"{BEGIN}\n<!-- written by benchmarks/{name}.py; do not edit by hand -->\n\n"
+    block = (f"{BEGIN}\n<!-- written by benchmarks/{script or name}.py; do not edit by hand -->\n\n"
              f"Measured on commit `{head}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
              f"{text}\n{END}")
     with open(path) as fh:
@@ -451,7 +453,7 @@ def main(argv=None) -> int:
         print(text)
         if args.docs:
             write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
-                       name=args.block, commit=args.commit)
+                       name=args.block, commit=args.commit, script="bench_detection")
         return 0
     from neck_sim.campaign import ExecutorSpec, run_campaign
 
@@ -491,7 +493,7 @@ def main(argv=None) -> int:
     print(text)
     if args.docs:
         write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
-                   name=args.block)
+                   name=args.block, script="bench_detection")
     if not args.skip_timing:
         print(timing())
         print(story())
