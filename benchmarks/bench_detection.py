@@ -113,11 +113,14 @@ def read_jsonl(path: str) -> list:
 
 def append_jsonl(path: str, rows: list) -> None:
     """Append whole lines under an exclusive lock, in one write: workers finishing together never
-    interleave their lines."""
+    interleave their lines, and a line torn by a killed run is ended (and skipped when read)."""
     data = "".join(json.dumps(r) + "\n" for r in rows).encode()
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    fd = os.open(path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
+        end = os.lseek(fd, 0, os.SEEK_END)
+        if end and os.pread(fd, 1, end - 1) != b"\n":     # a line torn by a killed run: end it first
+            data = b"\n" + data
         os.write(fd, data)
         os.fsync(fd)
     finally:
