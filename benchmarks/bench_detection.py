@@ -28,11 +28,17 @@ Usage: ``python benchmarks/bench_detection.py [--seeds 1,2,3] [--levels 0.25,0.5
 sequences,multisine] [--jsonl PATH] [--from-jsonl PATH] [--docs docs/diagnosis.md] [--skip-timing]``;
 ``--from-jsonl`` prints the tables of a previous run; ``--docs`` writes them, with the commit
 measured, between the ``bench_detection`` markers of a Markdown page.
+
+``--jsonl PATH`` gets one line per log as that log finishes (on local workers; on a Dask cluster,
+whose workers need not share this disk, at the end): an interrupted run keeps what it did, and a
+rerun with the same ``--jsonl`` skips the logs already there (case, seed, level, excitation; a log
+whose diagnosis raised is run again) and prints the tables of every log it asked for.
 """
 
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import sys
@@ -81,6 +87,59 @@ def _one(job):
                     "located": None, "improvement": 0.0, "leftover": [], "t_sim": 0.0, "t_diag": 0.0}
 
 
+def job_key(row_or_job) -> tuple:
+    """(case, seed, level, excitation) of a job or of a JSONL row: what a rerun skips when done."""
+    if isinstance(row_or_job, dict):
+        r = row_or_job
+        return r["case"], int(r["seed"]), float(r["level"]), r.get("excitation", "sequences")
+    name, seed, level, excitation = (*row_or_job, "sequences")[:4]
+    return name, int(seed), float(level), excitation
+
+
+def read_jsonl(path: str) -> list:
+    """The rows of a JSONL file (none when it does not exist yet); a torn last line (a run killed
+    mid-write) is skipped."""
+    if not os.path.exists(path):
+        return []
+    rows = []
+    with open(path) as fh:
+        for line in fh:
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def append_jsonl(path: str, rows: list) -> None:
+    """Append whole lines under an exclusive lock, in one write: workers finishing together never
+    interleave their lines, and a line torn by a killed run is ended (and skipped when read)."""
+    data = "".join(json.dumps(r) + "\n" for r in rows).encode()
+    fd = os.open(path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        end = os.lseek(fd, 0, os.SEEK_END)
+        if end and os.pread(fd, 1, end - 1) != b"\n":     # a line torn by a killed run: end it first
+            data = b"\n" + data
+        os.write(fd, data)
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class Recorded:
+    """``_one`` that appends its row to ``path`` as soon as the log is diagnosed (picklable: it
+    travels to the local workers, which share this disk)."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def __call__(self, job):
+        row = _one(job)
+        append_jsonl(self.path, [row])
+        return row
+
+
 def _one_in(job, directory):
     name, seed, level, excitation = (*job, "sequences")[:4]
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -112,7 +171,9 @@ def _one_in(job, directory):
     where = (f.joints or f.cables) if f is not None else None
     truth_where = [j + 1 for j in spec.joints] or [c + 1 for c in spec.cables] or None
     lo = diag.leftover
-    return {"case": name, "seed": seed, "level": level, "excitation": excitation, "expect": spec.expect,
+    places = {f"cable {c + 1}" for c in spec.cables} | {f"joint {j + 1}" for j in spec.joints}
+    return {"gaps": [g.describe() for g in diag.gaps if g.where in places],     # what the log lacks where it acts
+            "case": name, "seed": seed, "level": level, "excitation": excitation, "expect": spec.expect,
             "magnitude": spec.magnitude, "symbol": spec.symbol, "fitted": fitted, "description": spec.description,
             "verdict": "+".join(names), "correct": correct(spec.expect, names), "alone": alone(spec.expect, names),
             "borderline": diag.borderline,
@@ -121,6 +182,15 @@ def _one_in(job, directory):
             max((c.improvement for c in diag.steps[0].candidates), default=0.0),
             "leftover": [x.describe() for x in lo.found[:2]] if lo is not None else [],
             "t_sim": t_sim, "t_diag": t_diag}
+
+
+def bears_on(effect: str, gap: str) -> bool:
+    """A gap line (``Gap.describe()``) that says the log cannot show ``effect``: a conditioning
+    line about it, or a cable's tension range for a rest elongation or lambda."""
+    if f"({effect})" in gap:
+        return True
+    return ("a rest elongation cannot be separated" in gap if effect == "pretension"
+            else "lambda(" in gap and "cannot be separated" in gap if effect == "tension_stiffening" else False)
 
 
 def limit_table(results, levels) -> str:
@@ -214,6 +284,12 @@ def report(results, how: str) -> str:
             out.append("**Effects of the vocabulary** (correct: the verdict's first name; named alone: the verdict "
                        "is that name and nothing else)\n")
             out.append(limit_table(rx, levels))
+            why = [(r, [g for g in r.get("gaps", []) if bears_on(r["expect"], g)]) for r in ins if not r["correct"]]
+            why = [(r, g) for r, g in why if g]
+            if why:
+                out.append("\nNot named, and the log's gap lines that say it cannot show the effect where it acts:\n")
+                out += [f"- {r['case']} seed {r['seed']} level {r['level']:g}: `{r['verdict']}`; " + "; ".join(g)
+                        for r, g in why]
             out.append(f"\nNamed alone in {sum(r['alone'] for r in ins)}/{len(ins)} logs "
                        f"({100 * np.mean([r['alone'] for r in ins]):.0f} %); first name right in "
                        f"{sum(r['correct'] for r in ins)}/{len(ins)}; borderline verdicts "
@@ -233,10 +309,12 @@ def report(results, how: str) -> str:
     return "\n".join(out)
 
 
-def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None) -> None:
+def write_docs(path: str, text: str, command: str, name: str = "bench_detection", commit: str | None = None,
+               script: str | None = None) -> None:
     """Put the tables between the markers ``<!-- name: begin -->`` and ``<!-- name: end -->`` of
     ``path`` (atomic), with the commit measured (``commit``: the one a ``--from-jsonl`` run's
-    results were measured on; default the checkout's HEAD)."""
+    results were measured on; default the checkout's HEAD) and the benchmark that wrote them
+    (``script``, default ``name``)."""
     BEGIN, END = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     import subprocess
 
@@ -252,7 +330,7 @@ def write_docs(path: str, text: str, command: str, name: str = "bench_detection"
         head, dirty = "unknown", ""
     if commit is not None:                 # results of an earlier run: its commit, not the checkout's state
         head, dirty = commit, ""
-    block = (f"{BEGIN}\n<!-- written by benchmarks/{name}.py; do not edit by hand -->\n\n"
+    block = (f"{BEGIN}\n<!-- written by benchmarks/{script or name}.py; do not edit by hand -->\n\n"
              f"Measured on commit `{head}`{' (with uncommitted changes)' if dirty else ''} by `{command}`.\n\n"
              f"{text}\n{END}")
     with open(path) as fh:
@@ -364,6 +442,8 @@ def main(argv=None) -> int:
     ap.add_argument("--multisine-cases", default=None, help="cases run on the multisine (default: --cases)")
     ap.add_argument("--docs", default=None, help="write the tables into this Markdown file between its markers")
     ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
+    ap.add_argument("--block", default="bench_detection", help="with --docs: the markers' name (one block per "
+                    "excitation keeps each table with the commit it measured)")
     args = ap.parse_args(argv)
     if args.timing_only:
         print(timing())
@@ -376,7 +456,7 @@ def main(argv=None) -> int:
         print(text)
         if args.docs:
             write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
-                       commit=args.commit)
+                       name=args.block, commit=args.commit, script="bench_detection")
         return 0
     from neck_sim.campaign import ExecutorSpec, run_campaign
 
@@ -393,17 +473,30 @@ def main(argv=None) -> int:
         jobs += [("none", s, 1.0, excitation) for s in range(1, args.negatives + 1)]
         jobs += [(c, s, L, excitation) for L in sorted(levels, reverse=True) for c in on for s in seeds]
         jobs += [(c, s, 1.0, excitation) for c in pairs for s in seeds]
-    t0 = time.perf_counter()
-    results = run_campaign(_one, jobs, where, labels=[f"{c} seed {s} level {L:g} {e}" for c, s, L, e in jobs],
-                           desc="blind diagnoses")
-    wall = time.perf_counter() - t0
+    wanted = {job_key(j) for j in jobs}
+    done = {}
     if args.jsonl:
-        with open(args.jsonl, "a") as fh:
-            fh.writelines(json.dumps(r) + "\n" for r in results)
-    text = report(results, f"{wall:.0f} s on {where.describe()}")
+        for r in read_jsonl(args.jsonl):          # the last row of a log wins
+            if job_key(r) in wanted and not str(r.get("verdict", "")).startswith("failed"):
+                done[job_key(r)] = r
+        if done:
+            print(f"{args.jsonl}: {len(done)} of the {len(jobs)} logs already there, skipped", file=sys.stderr)
+    todo = [j for j in jobs if job_key(j) not in done]
+    fn = Recorded(args.jsonl) if args.jsonl and args.cluster is None else _one
+    t0 = time.perf_counter()
+    fresh = run_campaign(fn, todo, where, labels=[f"{c} seed {s} level {L:g} {e}" for c, s, L, e in todo],
+                         desc="blind diagnoses") if todo else []
+    wall = time.perf_counter() - t0
+    if args.jsonl and args.cluster is not None:
+        append_jsonl(args.jsonl, fresh)
+    by_key = {**done, **{job_key(r): r for r in fresh}}
+    results = [by_key[job_key(j)] for j in jobs if job_key(j) in by_key]
+    text = report(results, f"{wall:.0f} s on {where.describe()} for the {len(fresh)} logs run now"
+                  + (f", {len(done)} read back from {args.jsonl}" if done else ""))
     print(text)
     if args.docs:
-        write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]))
+        write_docs(args.docs, text, "python benchmarks/bench_detection.py " + " ".join(argv or sys.argv[1:]),
+                   name=args.block, script="bench_detection")
     if not args.skip_timing:
         print(timing())
         print(story())

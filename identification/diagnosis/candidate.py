@@ -120,6 +120,24 @@ class CandidateScore:
                 "the data cannot separate it from the baseline (" + "; ".join(lines) + ")")
         return note, tuple(out)
 
+    def unseen(self, summary, support) -> tuple[str, tuple]:
+        """What a candidate that fails its tests could not have shown: the parameters it rests on
+        whose columns the baseline explains beyond ``max_explained`` (on a cable or joint without a
+        gap of the log's own, which says it already) -- a note and one conditioning
+        :class:`~identification.diagnosis.support.Gap` each; ("", ()) when there are none or when
+        it passes its tests (then :meth:`refusal` speaks).  A rest elongation of the soft left
+        cable that k(4) absorbs is not evidence of its absence: the log cannot show it."""
+        if self.passes_tests:
+            return "", ()
+        hidden = [x for x in self.separability if x.carries and x.explained > self.max_explained and not x.unsupported]
+        if not hidden:
+            return "", ()
+        note = (f"{self.term.name} could not be told from the baseline on these data: " + "; ".join(
+            f"{x.name} on {x.where}, {100 * x.explained:.1f} % of its column explained by "
+            f"{', '.join(x.partners) or 'the baseline'}" for x in hidden))
+        return note, tuple(separability_gap(self.term.name, x.name, x.where, x.explained, x.partners, summary, support)
+                           for x in hidden)
+
     @property
     def separable(self) -> bool:
         """The data separate every parameter it rests on from the baseline."""

@@ -83,12 +83,16 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
         fit = chosen_fit(step.chosen)
         current, state = fit.model, fit.state
     timings["search"] = time.perf_counter() - t0
-    for st in steps:      # candidates whose tests pass on parameters the data cannot separate: not named, and why
-        for c in st.candidates:
-            if c.refused:
-                note, more = c.refusal(gaps, summary, s.support)
-                notes.append(note)
-                gaps = gaps + tuple(g for g in more if g not in gaps)
+    # candidates whose tests pass on parameters the data cannot separate: not named, and why; then
+    # those that failed their tests on such parameters: the log could not show them
+    for unseen in (False, True):
+        for st in steps:
+            for c in st.candidates:
+                note, more = (c.unseen(summary, s.support) if unseen else
+                              c.refusal(gaps, summary, s.support) if c.refused else ("", ()))
+                if note:
+                    notes.append(note)
+                    gaps = gaps + tuple(g for g in more if g not in gaps)
     # models compared: each step's baseline and the last extension (if the last step found one)
     evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
     fits = [e.fit for e in evaluated]

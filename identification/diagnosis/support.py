@@ -50,8 +50,9 @@ class SupportSettings:
     open-world tests' 12 s logs: >= 6 reversals, tension spans >= 25 N, >= 48 deg per joint);
     ``max_explained`` above what their hidden effects reach at the tests' level (over the
     open-world effects at seeds 1-3 and the native cable effects: a rest elongation up to
-    R^2 = 0.990 (VIF 100), a joint friction 0.89, the tension stiffening 0.89, the rest below
-    0.81).  A clean 24 s multisine's spurious rest elongation reaches only 0.975: R^2 alone does
+    R^2 = 0.990 (VIF 100) on the §5.2.2 sequences and 0.9962 (VIF 260) on the generator's random
+    multisine, a joint friction 0.95, the tension stiffening 0.89, the rest below 0.81; a rest
+    elongation of the soft left cable that k(4) absorbs, on its bound, 0.998).  A clean 24 s multisine's spurious rest elongation reaches only 0.975: R^2 alone does
     not tell it from a true one; what does is the tension range of its cable (9-12 N), a gap."""
 
     min_duration_s: float = 8.0
@@ -60,7 +61,7 @@ class SupportSettings:
     min_tension_span: float = 15.0
     min_joint_range_deg: float = 5.0
     min_hold_s: float = 0.5
-    max_explained: float = 0.995
+    max_explained: float = 0.997
 
     def __post_init__(self):
         if min(self.min_duration_s, self.min_speed, self.min_tension_span, self.min_joint_range_deg) <= 0 \
