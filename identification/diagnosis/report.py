@@ -91,16 +91,29 @@ def format_summary(diag) -> str:
                      f"{a.holdout.mean_abs_deg:.2f} deg")
     b, a = diag.baseline.resimulation, diag.final.resimulation
     if b and a:
-        lines.append(f"  re-simulation, held out: theta RMS {_vec(b.holdout.theta_rms_rad)} -> "
-                     f"{_vec(a.holdout.theta_rms_rad)} rad; alpha mean |error| "
-                     f"{_fmt(b.holdout.alpha_mean_abs_deg, digits=3)} -> "
-                     f"{_fmt(a.holdout.alpha_mean_abs_deg, digits=3)} deg ({b.status} / {a.status})")
+        lines.append(resimulation_line(b, a))
     if diag.leftover is not None and diag.leftover.significant:
         lines.append("  unexplained structure left (strongest first):")
         lines += [f"      {x.describe()}" for x in diag.leftover.found[:3]]
     lines += [f"  note: {n}" for n in diag.notes]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
+
+
+def resimulation_line(before, after) -> str:
+    """The summary's line on the held-out re-simulation of the baseline (``before``) and the final
+    model (``after``), both :class:`~identification.diagnosis.resimulation.Resimulation`: their
+    errors, or, when every block of both diverged, that the check says nothing (the errors then
+    cover only each block's run-up to its divergence)."""
+    if before.diverged_everywhere and after.diverged_everywhere:
+        return (f"  re-simulation, held out: no comparison: open loop, the logged forces drive both models out of "
+                f"their valid range in every block ({before.n_diverged} of {before.n_blocks}); the verdict rests "
+                f"on the fitted residuals alone")
+    status = before.status if before.status == after.status else f"{before.status} / {after.status}"
+    return (f"  re-simulation, held out: theta RMS {_vec(before.holdout.theta_rms_rad)} -> "
+            f"{_vec(after.holdout.theta_rms_rad)} rad; alpha mean |error| "
+            f"{_fmt(before.holdout.alpha_mean_abs_deg, digits=3)} -> "
+            f"{_fmt(after.holdout.alpha_mean_abs_deg, digits=3)} deg ({status})")
 
 
 def margin_text(diag) -> str:

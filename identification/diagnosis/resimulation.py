@@ -42,9 +42,17 @@ class Resimulation:
     theta_error: np.ndarray = field(repr=False)
     t_camera: np.ndarray = field(repr=False)
     alpha_error_deg: np.ndarray = field(repr=False)
+    n_blocks: int = 0
+    n_diverged: int = 0
+
+    @property
+    def diverged_everywhere(self) -> bool:
+        """Every block diverged: the errors cover only each block's run-up to its divergence."""
+        return self.n_blocks > 0 and self.n_diverged == self.n_blocks
 
     def to_dict(self) -> dict:
-        return {"status": self.status, "holdout": self.holdout.to_dict(), "all": self.all.to_dict()}
+        return {"status": self.status, "holdout": self.holdout.to_dict(), "all": self.all.to_dict(),
+                "blocks": self.n_blocks, "diverged_blocks": self.n_diverged}
 
 
 def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, split: Split, *,
@@ -120,4 +128,5 @@ def resimulate(data: MeasuredData, params: NeckParams, effects, rigid: bool, spl
                                   float(np.mean(np.abs(e_alpha[ok_c]))) if ok_c.any() else None,
                                   float(ok_f.sum() / max(m_fast.sum(), 1)))
 
-    return Resimulation(status, errors(split.holdout), errors(np.ones(data.S, bool)), t_fast, theta_err, tc, e_alpha)
+    return Resimulation(status, errors(split.holdout), errors(np.ones(data.S, bool)), t_fast, theta_err, tc, e_alpha,
+                        n_blocks=len(edges), n_diverged=len(diverged))
