@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["MIN_SIGNIFICANCE", "not_identified", "gap_lines"]
+__all__ = ["MIN_SIGNIFICANCE", "not_identified", "gap_lines", "tension_to_record"]
 
 #: |value| / sigma below which a parameter is reported as not identified (module docstring).
 MIN_SIGNIFICANCE = 5.0
@@ -33,18 +33,34 @@ def not_identified(value: npt.ArrayLike, sigma: npt.ArrayLike) -> np.ndarray:
         return ~(np.isfinite(v) & np.isfinite(s) & (np.abs(v) >= MIN_SIGNIFICANCE * s))
 
 
+def tension_to_record(lo: float, hi: float, want: float, f_max: float = np.inf) -> str:
+    """What to record (after "record moves that ...") for a cable whose taut tension spans
+    ``lo``..``hi`` N when a range up to ``want`` N would separate its parameters: pull it to
+    ``want``, or as far as its motor allows (95 % of ``f_max`` N); a cable that already reaches
+    that is asked for lower tensions instead (a wider span from the other end)."""
+    top = 0.95 * f_max
+    if want <= top:
+        return f"pull it to {want:.0f} N"
+    if top > hi + 1.0:
+        return f"pull it to {top:.0f} N (its motor's limit is {f_max:.0f} N)"
+    return (f"let it relax to {max(0.5 * lo, 5.0):.0f} N between pulls (it already reaches {hi:.0f} N of its "
+            f"motor's {f_max:.0f} N)")
+
+
 def _cable(name: str) -> int:
     return int(name.split("(")[1].rstrip(")")) - 1
 
 
 def gap_lines(fits: Sequence[tuple[str, Sequence[str], np.ndarray, np.ndarray, np.ndarray]], *,
-              tension: np.ndarray, x_c_dot: np.ndarray, theta_dot: np.ndarray, taut: np.ndarray) -> list[str]:
+              tension: np.ndarray, x_c_dot: np.ndarray, theta_dot: np.ndarray, taut: np.ndarray,
+              f_max: float = np.inf) -> list[str]:
     """One line per parameter some model does not identify: what is missing, what to record.
 
     ``fits`` is a sequence of (model name, names (p,), value (p,), sigma (p,), mask (p,) True =
     not identified); a parameter missing from several models gets one line naming them all.
     ``tension`` (S, m) N of eq (55), ``x_c_dot`` (S, m) m/s, ``theta_dot`` (S, m) rad/s on the
-    slow grid, ``taut`` (S, m) bool.
+    slow grid, ``taut`` (S, m) bool; ``f_max`` N the motors' largest force (what to record stays
+    within it).
     """
     known: dict = {}
     for model, names, value, sigma, mask in fits:
@@ -61,7 +77,7 @@ def gap_lines(fits: Sequence[tuple[str, Sequence[str], np.ndarray, np.ndarray, n
             why = f"cannot be separated from k({i + 1})" if sym == "lambda" else "is not identified"
             what = (f"cable {i + 1}'s tension spans only {lo:.0f}-{hi:.0f} N over its taut samples "
                     f"({100 * taut[:, i].mean():.0f} % of the log): {name} {why} "
-                    f"({got}); record moves that keep it taut and pull it to {max(2 * hi, 60.0):.0f} N")
+                    f"({got}); record moves that keep it taut and {tension_to_record(lo, hi, max(2 * hi, 60.0), f_max)}")
         elif sym == "c_a":
             v = np.abs(x_c_dot[taut[:, i], i]) if taut[:, i].any() else np.zeros(1)
             what = (f"cable {i + 1}'s elongation rate stays below {1e3 * np.percentile(v, 95):.1f} mm/s: {name} is not "

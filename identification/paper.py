@@ -341,7 +341,8 @@ def calibrated_uncertainty(prep: Prepared, params: NeckParams, s: Identification
         out[name] = u.with_identified(~missing)
         missing_by_model.append((name, u.names, u.value, u.sigma, missing))
     return out, gaps_mod.gap_lines(missing_by_model, tension=tension, theta_dot=prep.theta_dot, taut=taut,
-                                   x_c_dot=reg._need_camera(prep, "parameters not identified").x_c_dot)
+                                   x_c_dot=reg._need_camera(prep, "parameters not identified").x_c_dot,
+                                   f_max=params.actuation.f_max)
 
 
 def _unphysical_notes(results: dict) -> list[str]:

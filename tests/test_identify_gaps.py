@@ -83,3 +83,15 @@ def test_command_prints_the_gaps_and_marks_them_in_json(tmp_path, capsys):
     assert var["c_a(1)"]["identified"] is False and "sigma_eq50_paper" in var["k(1)"]
     assert "variable: c_a(1)" in data["not_identified"] and data["gaps"]
     assert main(["identify", str(log), "--bootstrap", "1", "--accept-out-of-range-forces"]) == 2
+
+
+def test_what_to_record_stays_within_the_motors_force():
+    from identification.gaps import tension_to_record
+
+    assert tension_to_record(11.0, 37.0, 75.0, f_max=100.0) == "pull it to 75 N"
+    # a 10-joint neck's cable between 39 and 76 N was told to reach 152 N with 100 N motors
+    capped = tension_to_record(39.0, 76.0, 152.0, f_max=100.0)
+    assert capped.startswith("pull it to 95 N") and "100 N" in capped
+    # nothing left above it: ask for the other end of the range instead
+    low = tension_to_record(60.0, 96.0, 192.0, f_max=100.0)
+    assert low.startswith("let it relax to 30 N") and "152" not in low and "192" not in low

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.gaps import tension_to_record
+
 __all__ = ["SupportSettings", "Gap", "ExcitationSummary", "excitation_summary", "log_gaps", "reversals",
            "blocked_candidates", "short_log_gap", "separability_gap", "log_support"]
 
@@ -82,7 +84,7 @@ class ExcitationSummary:
     """The excitation of one log: usable ``duration_s``; per cable ``speed`` (rad/s, 95th
     percentile of |theta_dot|), ``reversals``, ``force_lo``/``force_hi`` (N, 5th/95th percentile
     of the tension over the taut samples); per joint ``joint_range_deg``; ``hold_s`` total time
-    in holds."""
+    in holds; ``force_max`` (N) the motors' largest force, which bounds what to record."""
 
     duration_s: float
     speed: tuple
@@ -91,6 +93,7 @@ class ExcitationSummary:
     force_hi: tuple
     joint_range_deg: tuple
     hold_s: float
+    force_max: float = float("inf")
 
     def to_dict(self) -> dict:
         return {"duration_s": self.duration_s, "motor_speed_p95_rad_s": list(self.speed),
@@ -145,7 +148,7 @@ def excitation_summary(data) -> ExcitationSummary:
     act = data.activity
     hold = float(np.count_nonzero(act < 0.1 * max(np.percentile(act, 95), 1e-12)) * dt)
     return ExcitationSummary(float(data.t[-1] - data.t[0]), tuple(speed.tolist()), rev, tuple(lo.tolist()),
-                             tuple(hi.tolist()), tuple(rng.tolist()), hold)
+                             tuple(hi.tolist()), tuple(rng.tolist()), hold, float(data.params.actuation.f_max))
 
 
 def log_support(data, s: SupportSettings) -> tuple[ExcitationSummary, tuple[Gap, ...]]:
@@ -189,7 +192,9 @@ def log_gaps(summary: ExcitationSummary, n_joints: int, s: SupportSettings | Non
             gaps.append(Gap(f"cable {i + 1}", f"stays between {summary.force_lo[i]:.0f} and {summary.force_hi[i]:.0f} N "
                             f"(needs a span of {s.min_tension_span:g} N)",
                             f"lambda({i + 1}) and a rest elongation cannot be separated from k({i + 1})",
-                            f"record moves that pull it to {summary.force_lo[i] + 2 * s.min_tension_span:.0f} N",
+                            "record moves that " + tension_to_record(summary.force_lo[i], summary.force_hi[i],
+                                                                     summary.force_lo[i] + 2 * s.min_tension_span,
+                                                                     summary.force_max),
                             False, "tension"))
     still = [j for j in range(n_joints) if summary.joint_range_deg[j] < s.min_joint_range_deg]
     for j in still:
@@ -262,7 +267,8 @@ def separability_gap(effect: str, parameter: str, where: str, explained: float, 
     if kinds & {"k", "lambda"} and cable is not None:
         lo, hi = summary.force_lo[cable], summary.force_hi[cable]
         what = f"stays between {lo:.0f} and {hi:.0f} N"
-        record = f"record moves that pull it to {max(2 * hi, lo + 2 * s.min_tension_span, 60.0):.0f} N"
+        record = "record moves that " + tension_to_record(lo, hi, max(2 * hi, lo + 2 * s.min_tension_span, 60.0),
+                                                          summary.force_max)
     elif kinds & {"f_s", "c_v", "df", "mu", "c_a"}:
         what = "moves at too few distinct speeds"
         record = "record moves at several speeds, slow and fast, with reversals"
