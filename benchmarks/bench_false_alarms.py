@@ -23,7 +23,6 @@ Usage: ``python benchmarks/bench_false_alarms.py [--seeds 0,1,2,3,4] [--workers 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -75,16 +74,6 @@ def _key(r) -> tuple:
     return (r["excitation"], int(r["law"]), float(r["scale"]), int(r["seed"]))
 
 
-def _append(path: str, rows: list) -> None:
-    """Append ``rows`` to the JSONL ``path`` in one write (O_APPEND: concurrent workers' lines do
-    not interleave), so an interrupted grid keeps every log it finished."""
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-    try:
-        os.write(fd, "".join(json.dumps(r) + "\n" for r in rows).encode())
-    finally:
-        os.close(fd)
-
-
 def _one(job_and_dir):
     job, logs, jsonl = job_and_dir
     kind, law, scale, seed = job
@@ -110,8 +99,9 @@ def _one(job_and_dir):
                         "leftover": [x.describe() for x in diag.leftover.found[:2]] if diag.leftover else [],
                         "not_named": [n for n in diag.notes if "but is not named" in n],
                         "t_sim": t_sim, "t_diag": time.perf_counter() - t0})
-        if jsonl:
-            _append(jsonl, out)
+        if jsonl:                       # both crops of a log in one locked write: a log is whole or absent
+            from bench_detection import append_jsonl
+            append_jsonl(jsonl, out)
         return out
 
 
@@ -159,12 +149,12 @@ def main(argv=None) -> int:
     ap.add_argument("--commit", default=None, help="with --from-jsonl: the commit the results were measured on")
     args = ap.parse_args(argv)
     command = "python benchmarks/bench_false_alarms.py " + " ".join(argv or sys.argv[1:])
+    from bench_detection import read_jsonl, write_docs
+
     if args.from_jsonl:
-        with open(args.from_jsonl) as fh:
-            text = table([json.loads(x) for x in fh if x.strip()])
+        text = table(read_jsonl(args.from_jsonl))
         print(text)
         if args.docs:
-            from bench_detection import write_docs
             write_docs(args.docs, text, command, "bench_false_alarms", commit=args.commit)
         return 0
     from neck_sim.campaign import ExecutorSpec, run_campaign
@@ -180,10 +170,7 @@ def main(argv=None) -> int:
                      for s in seeds]
     if args.logs:
         os.makedirs(args.logs, exist_ok=True)
-    held = []
-    if args.jsonl and os.path.exists(args.jsonl):
-        with open(args.jsonl) as fh:
-            held = [r for r in (json.loads(x) for x in fh if x.strip()) if _key(r) in set(jobs)]
+    held = [r for r in read_jsonl(args.jsonl) if _key(r) in set(jobs)] if args.jsonl else []
     todo = [j for j in jobs if j not in {_key(r) for r in held}]
     if held:
         print(f"{len(jobs) - len(todo)} of {len(jobs)} logs already in {args.jsonl}; running the other {len(todo)}")
@@ -196,7 +183,6 @@ def main(argv=None) -> int:
             f"{where.describe()}).\n\n" + table(results))
     print(text)
     if args.docs:
-        from bench_detection import write_docs
         write_docs(args.docs, text, command, "bench_false_alarms")
     return 0
 
