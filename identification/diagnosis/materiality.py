@@ -27,7 +27,8 @@ import dataclasses
 
 import numpy as np
 
-from identification.diagnosis.statistics import Comparison, effective_samples, f_test_p, improvement, in_band, wilcoxon_p
+from identification.diagnosis.statistics import (Comparison, effective_samples, f_test_p, improvement, in_band,
+                                                 mean_square, wilcoxon_p)
 
 __all__ = ["REFERENCE_TORQUE_CHANNELS", "own_channels", "own_min_improvement", "own_comparison", "own_significant",
            "candidate_decision"]
@@ -54,9 +55,8 @@ def own_min_improvement(min_improvement: float) -> float:
 
 
 def _ms(res: np.ndarray, mask: np.ndarray, ch: list[int]) -> float:
-    r = res[mask][:, ch]
-    ok = np.isfinite(r)
-    return float(np.where(ok, r, 0.0).__pow__(2).sum() / max(ok.sum(), 1))
+    """Mean square of ``res``' channels ``ch`` (one channel: a located term acts on one joint)."""
+    return float(mean_square(res[:, ch], mask).mean())
 
 
 def own_comparison(ctx, ref, cand, term, added: int) -> Comparison | None:
