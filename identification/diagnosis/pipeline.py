@@ -85,14 +85,13 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
     timings["search"] = time.perf_counter() - t0
     # candidates whose tests pass on parameters the data cannot separate: not named, and why; then
     # those that failed their tests on such parameters: the log could not show them
-    for unseen in (False, True):
-        for st in steps:
-            for c in st.candidates:
-                note, more = (c.unseen(summary, s.support) if unseen else
-                              c.refusal(gaps, summary, s.support) if c.refused else ("", ()))
-                if note:
-                    notes.append(note)
-                    gaps = gaps + tuple(g for g in more if g not in gaps)
+    candidates = [c for st in steps for c in st.candidates]
+    for c, unseen in [(c, False) for c in candidates if c.refused] + [(c, True) for c in candidates]:
+        # in turn: a refusal reads the gaps the ones before it added
+        note, more = c.unseen(summary, s.support) if unseen else c.refusal(gaps, summary, s.support)
+        if note:
+            notes.append(note)
+            gaps = gaps + tuple(g for g in more if g not in gaps)
     # models compared: each step's baseline and the last extension (if the last step found one)
     evaluated = [st.base for st in steps] + ([steps[-1].extended] if steps[-1].extended is not None else [])
     fits = [e.fit for e in evaluated]

@@ -54,8 +54,9 @@ class SupportSettings:
     open-world effects at seeds 1-3 and the native cable effects: a rest elongation up to
     R^2 = 0.990 (VIF 100) on the §5.2.2 sequences and 0.9962 (VIF 260) on the generator's random
     multisine, a joint friction 0.95, the tension stiffening 0.89, the rest below 0.81; a rest
-    elongation of the soft left cable that k(4) absorbs, on its bound, 0.998).  A clean 24 s multisine's spurious rest elongation reaches only 0.975: R^2 alone does
-    not tell it from a true one; what does is the tension range of its cable (9-12 N), a gap."""
+    elongation of the soft left cable that k(4) absorbs, on its bound, 0.998).  A clean 24 s
+    multisine's spurious rest elongation reaches only 0.975: R^2 alone does not tell it from a
+    true one; what does is the tension range of its cable (9-12 N), a gap."""
 
     min_duration_s: float = 8.0
     min_reversals: int = 2
