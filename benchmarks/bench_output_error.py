@@ -143,7 +143,7 @@ def sysid(log, ls, threads: int, max_iter: int):
     # needs a finite box)
     floor = np.array([SCALE_FLOOR[n.split("(")[0]] for n in layout.names])
     params = mjsysid.ParameterDict({"x": mjsysid.Parameter("x", x0, layout.lower, 10 * np.maximum(np.abs(x0), floor))})
-    from identification.diagnosis.pipeline import single_thread
+    from identification.threads import single_thread
 
     # the fit's BLAS setting (one thread: OpenBLAS threads only spin on these small products)
     with single_thread(), _Clock() as c:

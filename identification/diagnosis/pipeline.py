@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import os
 import time
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -24,21 +23,12 @@ from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import borrowed_names, leftover_structure
 from identification.diagnosis.support import blocked_candidates, log_support, short_log_gap
 from identification.preprocessing import Measurements
+from identification.threads import single_thread
 from neck_sim.analytic import UnreachableError
 from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
     from neck_sim.logs import Log
-
-
-def single_thread() -> contextlib.AbstractContextManager[Any]:
-    """BLAS limited to one thread: the fits are many small least-squares problems, for which
-    OpenBLAS threads only cost (10x slower on a loaded 2-core machine)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:              # pragma: no cover - threadpoolctl is a dependency
-        return contextlib.nullcontext()
-    return threadpool_limits(1)
 
 
 def diagnose(data: MeasuredData, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,

@@ -212,7 +212,7 @@ def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = Non
     Gauss-Newton step from there lands at 1.08 times the floor, so no continuation over growing
     spans is needed -- provided the fit runs on the plant's integrator (:func:`choose_integrator`).
     ValueError when the start cannot be simulated; later diverging candidates are rejected steps."""
-    from identification.diagnosis.pipeline import single_thread
+    from identification.threads import single_thread
 
     # BLAS on one thread: the solver's and the intervals' products are (n, 16) by (16, 16), for
     # which OpenBLAS threads only spin (the sandwich took 0.44 s of CPU on two threads of a
