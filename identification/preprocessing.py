@@ -182,11 +182,13 @@ def lowpass(x: npt.ArrayLike, fs: float, cutoff_hz: float, order: int = 4, axis:
     if not 0 < cutoff_hz < nyq:
         raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
     sos, zi, edge = _butter_sos(int(order), float(cutoff_hz), float(fs))
-    x0 = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
+    x0 = np.asarray(x, dtype=float)
+    if axis != 0:           # the usual axis 0 skips moveaxis's checks: 120 calls per residual analysis
+        x0 = np.moveaxis(x0, axis, 0)
     if x0.shape[0] <= edge:
         raise ValueError(f"lowpass: {x0.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
-    flat = np.ascontiguousarray(x0.reshape(x0.shape[0], -1))
-    return np.moveaxis(_filtfilt(sos, zi, flat, edge).reshape(x0.shape), 0, axis)
+    y = _filtfilt(sos, zi, np.ascontiguousarray(x0.reshape(x0.shape[0], -1)), edge).reshape(x0.shape)
+    return y if axis == 0 else np.moveaxis(y, 0, axis)
 
 
 @kernel
@@ -222,7 +224,9 @@ def _filtfilt(sos, zi, x, edge):        # pragma: no cover  (compiled)
     return out
 
 
-@functools.lru_cache(maxsize=256)
+# room for both residual analyses' 120 candidates (motors and camera) and a bootstrap's new cutoffs:
+# at 256 the motors' candidates were designed again for every log of a series
+@functools.lru_cache(maxsize=4096)
 def _butter_sos(order: int, cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
     """(sos, sosfilt_zi, pad length) of a Butterworth low-pass, as ``sosfiltfilt`` derives them."""
     sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
@@ -299,15 +303,50 @@ def _antialias(q: int) -> signal.dlti:
     return signal.dlti(b * (a.sum() / b.sum()), a)
 
 
+@functools.lru_cache(maxsize=32)
+def _antialias_coefficients(q: int) -> tuple[np.ndarray, ...]:
+    """What ``scipy.signal.decimate`` and ``filtfilt`` derive from :func:`_antialias` (q) on every
+    call, derived once: (b, a, lfilter_zi) when a pole is complex (scipy's transfer-function
+    branch), else (sos,) (its second-order sections)."""
+    f = _antialias(q)
+    system = f._as_zpk()          # a polynomial root finding: the per-call cost saved here
+    if any(np.iscomplex(system.poles)) or np.iscomplex(system.gain):
+        tf = f._as_tf()
+        b, a = np.atleast_1d(np.array(tf.num)), np.atleast_1d(np.array(tf.den))
+        out: tuple[np.ndarray, ...] = (b, a, signal.lfilter_zi(b, a))
+    else:
+        out = (np.asarray(signal.zpk2sos(system.zeros, system.poles, system.gain), dtype=float),)
+    for c in out:
+        c.flags.writeable = False
+    return out
+
+
+def _filtfilt_tf(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.filtfilt(b, a, x, axis=0)`` (odd extension of 3 max(len(a), len(b)) samples,
+    each pass of ``lfilter`` started from ``zi`` times its first sample) with ``zi`` given."""
+    edge = 3 * max(a.size, b.size)
+    if x.shape[0] <= edge:
+        raise ValueError(f"decimate: {x.shape[0]} samples; its zero-phase anti-aliasing filter needs more than {edge}")
+    ext = np.concatenate((2 * x[:1] - x[edge:0:-1], x, 2 * x[-1:] - x[-2:-(edge + 2):-1]), axis=0)
+    z = zi.reshape((zi.size,) + (1,) * (x.ndim - 1))
+    y, _ = signal.lfilter(b, a, ext, axis=0, zi=z * ext[:1])
+    y, _ = signal.lfilter(b, a, y[::-1], axis=0, zi=z * y[-1:])
+    return y[::-1][edge:-edge]
+
+
 def decimate(x: npt.ArrayLike, q: int, axis: int = 0) -> np.ndarray:
     """``scipy.signal.decimate`` by q in stages of at most 13, zero phase, unit DC gain.
 
-    Output sample k is input sample k*q (the zero-phase filter does not shift the signal).
+    Output sample k is input sample k*q (the zero-phase filter does not shift the signal).  Each
+    stage is scipy's zero-phase IIR decimation bit for bit, with what scipy derives from the filter
+    on every call derived once (:func:`_antialias_coefficients`): the bootstrap decimates every
+    replicate's signals again.
     """
-    y = np.asarray(x, dtype=float)
+    y = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
     for f in _stages(q):
-        y = signal.decimate(y, f, ftype=_antialias(f), axis=axis, zero_phase=True)
-    return y
+        c = _antialias_coefficients(f)
+        y = (_filtfilt_tf(*c, y) if len(c) == 3 else signal.sosfiltfilt(c[0], y, axis=0))[::f]
+    return np.moveaxis(y, 0, axis)
 
 
 class FastSignals(NamedTuple):

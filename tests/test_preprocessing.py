@@ -81,6 +81,21 @@ def test_decimate_keeps_unit_gain_and_alignment():
     assert np.max(np.abs(y[mid] - wave[::16][mid])) < 1e-3
 
 
+@pytest.mark.parametrize("shape, axis, q", [((7500, 4), 0, 16), ((3, 2000), 1, 12), ((2000,), 0, 3),
+                                            ((600, 2, 3), 0, 26)])
+def test_decimate_is_scipys_staged_decimate_bit_for_bit(shape, axis, q):
+    """Each stage is scipy.signal.decimate with the unit-gain filter, its coefficients derived once."""
+    from scipy import signal
+
+    x = np.random.default_rng(5).normal(size=shape).cumsum(axis=axis)
+    ref = x
+    for f in {16: (8, 2), 12: (12,), 3: (3,), 26: (13, 2)}[q]:
+        b, a = signal.cheby1(8, 0.05, 0.8 / f)
+        ref = signal.decimate(ref, f, ftype=signal.dlti(b * (a.sum() / b.sum()), a), axis=axis, zero_phase=True)
+    for _ in range(2):                                  # the second call reads the cached coefficients
+        assert np.array_equal(decimate(x, q, axis), ref)
+
+
 def test_decimation_factor_is_the_papers():
     assert decimation_factor(500.0, 30.0) == 16          # 31.25 Hz
     assert decimation_factor(500.0, 31.25) == 16
