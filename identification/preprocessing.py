@@ -377,7 +377,14 @@ class SlowChain(NamedTuple):
 
     def after_lowpass(self, v: npt.ArrayLike) -> np.ndarray:
         """The chain without its first low-pass (for signals already filtered and differentiated)."""
-        slow = decimate(v, self.q)[: self.n_grid][self.idx]
+        return self.after_decimation(self.decimated(v))
+
+    def decimated(self, v: npt.ArrayLike) -> np.ndarray:
+        """Decimation and the camera window: the part of the chain the common bandwidth does not change."""
+        return decimate(v, self.q)[: self.n_grid][self.idx]
+
+    def after_decimation(self, slow: np.ndarray) -> np.ndarray:
+        """The rest of the chain: the common-bandwidth low-pass and the trimming."""
         if self.common_hz is not None:
             slow = lowpass(slow, self.motor_rate_hz / self.q, self.common_hz, self.order)
         return slow[self.keep]
@@ -415,6 +422,9 @@ class Prepared:
     fast: FastSignals | None = None
     camera: tuple | None = None
     chain: SlowChain | None = None
+    # theta, theta_dot, theta_ddot and force decimated, before the common bandwidth: ``prepare``'s
+    # ``reuse`` takes them instead of filtering and decimating the same motor samples again
+    _decimated: dict | None = field(default=None, repr=False)
 
     @property
     def has_camera(self) -> bool:
@@ -445,12 +455,16 @@ def _cutoff(given: float | None, x: np.ndarray, fs: float, order: int) -> Cutoff
 
 
 def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
-            *, camera_rate_hz: float | None = None) -> Prepared:
+            *, camera_rate_hz: float | None = None, reuse: Prepared | None = None) -> Prepared:
     """Filter, differentiate, decimate and synchronise ``meas`` (see the module docstring).
 
     ``params`` gives the nominal geometry and drive (for eq 27); ``camera_rate_hz`` (default
-    ``params.sensors.camera_rate_hz``) sets the decimation factor.  Raises ValueError naming the
-    problem for a log that is too short, unevenly sampled, or whose camera does not overlap it.
+    ``params.sensors.camera_rate_hz``) sets the decimation factor.  ``reuse``: a preparation of the
+    very same motor arrays (``reuse.fast.theta is meas.theta``, likewise the forces) with the motor
+    cutoff given here, whose filtered and decimated motor signals are taken instead of computed
+    again (the camera-noise bootstrap prepares the same motors with new camera frames; the result
+    is the same bit for bit).  Raises ValueError naming the problem for a log that is too short,
+    unevenly sampled, or whose camera does not overlap it, and for a ``reuse`` of other motors.
     """
     s = settings or PreprocessSettings()
     n = params.n_joints
@@ -497,12 +511,18 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     refilter = s.common_bandwidth and common < 0.5 * rate * 0.95
     chain = SlowChain(fs, motor_cut.hz, q, t_grid.size, idx, common if refilter else None, keep, order)
 
-    theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
-    theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
-    theta_ddot = np.gradient(theta_dot, 1.0 / fs, axis=0)
+    if reuse is not None:
+        _check_reuse(reuse, meas, chain)
+        decimated, theta_dot = reuse._decimated, reuse.fast.theta_dot
+    else:
+        theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
+        theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
+        theta_ddot = np.gradient(theta_dot, 1.0 / fs, axis=0)
+        decimated = {"theta": chain.decimated(theta_f), "theta_dot": chain.decimated(theta_dot),
+                     "theta_ddot": chain.decimated(theta_ddot),
+                     "force": chain.decimated(lowpass(meas.force, fs, motor_cut.hz, order))}
     fast = FastSignals(meas.t_motor, meas.theta, theta_dot, meas.force)
-    slow = {"theta": chain.after_lowpass(theta_f), "theta_dot": chain.after_lowpass(theta_dot),
-            "theta_ddot": chain.after_lowpass(theta_ddot), "force": chain(meas.force)}
+    slow = {k: chain.after_decimation(v) for k, v in decimated.items()}
     h = 1.0 / rate
     x_c: np.ndarray | None = None
     x_c_dot: np.ndarray | None = None
@@ -519,4 +539,17 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
 
     return Prepared(t=t[keep], **slow, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot,
                     x_c=x_c, x_c_dot=x_c_dot, x_c_ddot=x_c_ddot, motor_rate_hz=fs, rate_hz=rate, decimation=q,
-                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain)
+                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated)
+
+
+def _check_reuse(reuse: Prepared, meas: Measurements, chain: SlowChain) -> None:
+    old = reuse.chain
+    if (reuse._decimated is None or reuse.fast is None or old is None or reuse.fast.theta is not meas.theta
+            or reuse.fast.force is not meas.force):
+        raise ValueError("reuse: not a preparation of these motor samples (the same theta and force arrays)")
+    same = (old.motor_rate_hz, old.motor_hz, old.order, old.q, old.n_grid) == (
+        chain.motor_rate_hz, chain.motor_hz, chain.order, chain.q, chain.n_grid)
+    if not (same and np.array_equal(old.idx, chain.idx)):
+        raise ValueError(f"reuse: prepared with motor cutoff {old.motor_hz:.6g} Hz and decimation {old.q} on its own "
+                         f"camera window, here {chain.motor_hz:.6g} Hz and {chain.q}: give the same motor cutoff "
+                         "and camera times")

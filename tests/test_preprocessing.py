@@ -170,6 +170,32 @@ def test_bad_measurements_are_refused(run, params):
         prepare(Measurements(t, th, f, tc, cam3), example_params("neck10x4"))
 
 
+def test_a_replicate_reusing_the_motor_side_is_prepared_bit_for_bit(run, params):
+    """The camera-noise bootstrap's replicate: new camera frames, the log's own motor arrays and motor
+    cutoff.  Prepared with ``reuse`` (the motor signals taken from the log's preparation) and without
+    (computed again): the same arrays, bit for bit; other motors or another cutoff are refused."""
+    rng = np.random.default_rng(0)
+    meas = synthetic_measurements(run, params, rng)
+    prep = prepare(meas, params)
+    fixed = PreprocessSettings(motor_cutoff_hz=prep.cutoffs["motors"].hz)
+    other = Measurements(meas.t_motor, meas.theta, meas.force, meas.t_camera,
+                         meas.alpha_camera + np.radians(1.0) * rng.standard_normal(meas.alpha_camera.shape))
+    fresh = prepare(other, params, fixed)
+    reused = prepare(other, params, fixed, reuse=prep)
+    # the new frames moved the common bandwidth, which the reused motor signals go through again
+    assert reused.cutoffs["common"].hz != prep.cutoffs["common"].hz
+    assert reused.cutoffs == fresh.cutoffs
+    for name in ("t", "theta", "theta_dot", "theta_ddot", "force", "alpha", "alpha_dot", "alpha_ddot", "x_c",
+                 "x_c_dot", "x_c_ddot"):
+        assert np.array_equal(getattr(reused, name), getattr(fresh, name)), name
+    assert np.array_equal(reused.fast.theta_dot, fresh.fast.theta_dot)
+    with pytest.raises(ValueError, match="same theta and force arrays"):
+        prepare(Measurements(meas.t_motor, meas.theta.copy(), meas.force, meas.t_camera, meas.alpha_camera), params,
+                fixed, reuse=prep)
+    with pytest.raises(ValueError, match="motor cutoff"):
+        prepare(other, params, PreprocessSettings(motor_cutoff_hz=0.5 * fixed.motor_cutoff_hz), reuse=prep)
+
+
 def test_chain_takes_any_control_rate_signal_to_the_slow_grid(run, params):
     prep = prepare(synthetic_measurements(run, params, np.random.default_rng(0)), params)
     slow_wave = np.sin(2 * np.pi * 0.2 * run.t)[:, None] * np.array([1.0, -2.0])
