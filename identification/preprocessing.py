@@ -512,8 +512,7 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     chain = SlowChain(fs, motor_cut.hz, q, t_grid.size, idx, common if refilter else None, keep, order)
 
     if reuse is not None:
-        _check_reuse(reuse, meas, chain)
-        decimated, theta_dot = reuse._decimated, reuse.fast.theta_dot
+        decimated, theta_dot = _reused(reuse, meas, chain)
     else:
         theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
         theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
@@ -542,10 +541,12 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
                     cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated)
 
 
-def _check_reuse(reuse: Prepared, meas: Measurements, chain: SlowChain) -> None:
-    old = reuse.chain
-    if (reuse._decimated is None or reuse.fast is None or old is None or reuse.fast.theta is not meas.theta
-            or reuse.fast.force is not meas.force):
+def _reused(reuse: Prepared, meas: Measurements, chain: SlowChain) -> tuple[dict, np.ndarray]:
+    """(decimated motor signals, control-rate motor speeds) of ``reuse``, checked to be those of
+    ``meas``'s motor arrays through the same chain up to its common bandwidth."""
+    old, decimated, fast = reuse.chain, reuse._decimated, reuse.fast
+    if (decimated is None or fast is None or old is None or fast.theta is not meas.theta
+            or fast.force is not meas.force):
         raise ValueError("reuse: not a preparation of these motor samples (the same theta and force arrays)")
     same = (old.motor_rate_hz, old.motor_hz, old.order, old.q, old.n_grid) == (
         chain.motor_rate_hz, chain.motor_hz, chain.order, chain.q, chain.n_grid)
@@ -553,3 +554,4 @@ def _check_reuse(reuse: Prepared, meas: Measurements, chain: SlowChain) -> None:
         raise ValueError(f"reuse: prepared with motor cutoff {old.motor_hz:.6g} Hz and decimation {old.q} on its own "
                          f"camera window, here {chain.motor_hz:.6g} Hz and {chain.q}: give the same motor cutoff "
                          "and camera times")
+    return decimated, fast.theta_dot
