@@ -372,9 +372,18 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
 
     whole = Comparison(0.4 / (2 * n), 0.4 / (2 * n), 0.02, 0.3)      # fails the step's tests
     passes, held_to, margins, note = candidate_decision(ctx, whole, own)
-    assert passes and (held_to.p_train, held_to.p_holdout) == (own.p_train, own.p_holdout)
+    # held to the better of two tests: both p values times 2 (Bonferroni)
+    assert passes and (held_to.p_train, held_to.p_holdout) == (2 * own.p_train, 2 * own.p_holdout)
     assert held_to.improvement == whole.improvement and margins["improvement"] == pytest.approx(0.4 / 0.12 - 1)
     assert own_min_improvement(0.02) == pytest.approx(0.12) and "own channel" in note
     worse = Comparison(-0.001, -0.001, 0.02, 0.3)
     assert not candidate_decision(ctx, worse, own)[0]
     assert candidate_decision(ctx, whole, None)[:2] == (False, whole)
+    # an own channel whose p values pass at alpha but not at alpha / 2 is not named; a whole
+    # score that passes at alpha / 2 is, held to its own p values times 2
+    edge = Comparison(0.4, 0.4, 0.7 * alpha_c, 0.7 * alpha_c)
+    assert edge.significant(alpha_c, 0.12) and not candidate_decision(ctx, whole, edge)[0]
+    strong = Comparison(0.05, 0.05, 0.3 * alpha_c, 0.3 * alpha_c)
+    passes, held_to, _, note = candidate_decision(ctx, strong, edge)
+    assert passes and held_to.p_train == pytest.approx(0.6 * alpha_c) and not note
+    assert candidate_decision(ctx, strong, None)[1] == strong
