@@ -207,10 +207,10 @@ def test_a_weak_side_spring_on_the_ten_joint_neck_is_named_on_its_joint(blind10)
     """One side spring 20 % weak (MuJoCo's tendon stiffness, seed 2: joint 1's left spring, 600 ->
     483 N/m) on a 30.8 s log: the spring-error candidate searched joint by joint picks the hidden
     joint over the other nine and over every joint at once, and is named on its own channel
-    (materiality.py: joint 1's torque residual @OWN@ % lower cross-validated, Wilcoxon p @PH@ and
-    F-test p @PT@ with the factors 2N and 2 counted, against 0.01 / 10 candidates), while the whole
-    score moves by @WHOLE@ % (below its 2 %).  Named alone, on joint 1, dk of the hidden spring within
-    the 3-joint tests' 10 % (@ERR@ %).  The 15.6 s log of the same seed is one factor 2 short:
+    (materiality.py: joint 1's torque residual 27.3 % lower cross-validated, Wilcoxon p 7.6e-7 and
+    F-test p 4.8e-6 with the factors 2N and 2 counted, against 0.01 / 10 candidates), while the whole
+    score moves by 1.3 % (below its 2 %).  Named alone, on joint 1, dk of the hidden spring within
+    the 3-joint tests' 10 % (-5.9 %).  The 15.6 s log of the same seed is one factor 2 short:
     F-test p 1.7e-3 there (docs/your-own-neck.md, section 7: record 30 s or more)."""
     spec, diag = blind10("spring_error", 2, 0.4, moves=16)
     assert diag.verdict == "spring_error", diag.verdict
