@@ -171,8 +171,9 @@ def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge
     0.046 +- 0.008 N m (width 0.2 rad/s) but predicts joint 5's torque 1 % worse over the
     cross-validated blocks (14 % worse on the primary held-out fold), so no rule of materiality
     names it: joint 5's torque row carries 0.12 N m RMS of residual on the clean log of this seed
-    (0.27 at joint 1, 0.009 at joint 10: the camera's noise through the neck above the joint), of
-    which 0.036 N m of friction is about 9 %, below the own channel's 12 % at any log length
+    (0.27 at joint 1, 0.009 at joint 10; at joint 5 about 0.085 N m of it is the camera's 1 deg
+    noise, measured with noise 0 and 1 on one seed), whose mean square 0.036 N m of friction is
+    about 9 % of, below the own channel's 12 %, a ratio that a longer log does not change
     (docs/your-own-neck.md, section 7)."""
     spec, diag = blind10("joint_friction", SEED)
     fit = _own_candidate(diag, spec).fit
