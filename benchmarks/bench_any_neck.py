@@ -26,6 +26,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
+    python benchmarks/bench_any_neck.py --detection --moves 16 --cases spring_error none   # 30.8 s logs
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
 """
 
@@ -141,7 +142,8 @@ def main(argv=None) -> int:
     ap.add_argument("--detection", action="store_true", help="the blind diagnosis matrix on the 10x4 neck")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     ap.add_argument("--moves", type=int, default=8,
-                    help="--detection: waypoint moves per log (8: 15.6 s, the tests' logs; 31: 59.3 s)")
+                    help="--detection: waypoint moves per log (8: 15.6 s, the tests' logs; 16: 30.8 s, the "
+                         "one-joint spring's test log; 31: 59.3 s)")
     ap.add_argument("--cases", nargs="+", choices=sorted(DETECTION), help="--detection: only these cases")
     args = ap.parse_args(argv)
 

@@ -45,6 +45,7 @@ from neck_sim.analytic.cables import transmission_matrix
 from neck_sim.analytic.dynamics import gravity_spring_torque
 from neck_sim.analytic.statics import (equilibrium_for_forces, force_stiffness, head_jacobian, least_tensions,
                                        motor_angles_for, motor_stiffness)
+from neck_sim.cache import memo
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import Trajectory
 
@@ -178,7 +179,14 @@ def shapes_tour(params: NeckParams, duration_scale: float = 1.0, *, bend_deg: fl
                 margin: float = FORCE_MARGIN, position: float = 0.5) -> ReachablePath:
     """C curve both ways, S curve both ways and the head reach, each from and back to the start
     pose (:func:`straight_pretension` at ``position``): 2.5 s moves and 1 s holds times
-    ``duration_scale`` (the paper's control-test timing)."""
+    ``duration_scale`` (the paper's control-test timing).  Planned once per neck and request
+    (:func:`neck_sim.cache.memo`: seconds of static solves on a ten-joint neck)."""
+    key = (params, float(duration_scale), float(bend_deg), float(margin), float(position))
+    return memo("shapes_tour", key, lambda: _shapes_tour(*key))
+
+
+def _shapes_tour(params: NeckParams, duration_scale: float, bend_deg: float, margin: float,
+                 position: float) -> ReachablePath:
     start = straight_pretension(params, margin=margin, position=position)
     moves = _moves(params, start, bend_deg, margin)
     order = [k for k in ("C+", "C-", "S+", "S-", "reach+") if k in moves]
@@ -200,8 +208,15 @@ def excitation_path(params: NeckParams, duration_scale: float = 1.0, *, bend_deg
     At each pretension level (``levels``: positions in the stable range, see
     :func:`straight_pretension`), for the C and S directions (whichever the routing makes), the six
     moves +d, -d, start, -d, +d, start of §5.2.2; a co-contraction move joins the levels, and the path
-    returns to the first level at the end.
+    returns to the first level at the end.  Planned once per neck and request
+    (:func:`neck_sim.cache.memo`).
     """
+    key = (params, float(duration_scale), float(bend_deg), float(margin), tuple(float(x) for x in levels))
+    return memo("excitation_path", key, lambda: _excitation_path(*key))
+
+
+def _excitation_path(params: NeckParams, duration_scale: float, bend_deg: float, margin: float,
+                     levels: tuple) -> ReachablePath:
     waypoints, labels = [], []
     first = None
     for pos in levels:

@@ -40,16 +40,14 @@ routing's, ``params.n_cables``; N + 1 on the paper's routing).
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-from scipy import signal
 
+from identification.filtering import CutoffChoice, decimate, decimation_factor, lowpass, residual_cutoff
 from neck_sim.analytic import elongation
-from neck_sim.jit import kernel
 from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
@@ -163,153 +161,6 @@ class PreprocessSettings:
             raise ValueError(f"trim_s: must be >= 0, got {self.trim_s!r}")
 
 
-class CutoffChoice(NamedTuple):
-    """A cutoff (Hz) with how it was chosen: per-channel cutoffs and noise rms (residual analysis)."""
-
-    hz: float
-    method: str                       # "residual analysis (Winter)" or "given"
-    per_channel_hz: tuple = ()
-    noise_rms: tuple = ()             # intercept a of the residual line, signal units
-
-
-def lowpass(x: npt.ArrayLike, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
-    """Zero-phase Butterworth low-pass (forward and reverse) along ``axis``: ``scipy.signal.
-    sosfiltfilt``'s arithmetic bit for bit (odd extension of 3 x its taps at both ends, each pass
-    started from ``sosfilt_zi`` times its first sample, sosfilt's direct form II transposed), in one
-    compiled call with the design cached: the residual analysis filters a short signal at 120
-    cutoffs on every bootstrap replicate, where scipy's per-call set-up cost more than the filtering."""
-    nyq = 0.5 * fs
-    if not 0 < cutoff_hz < nyq:
-        raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
-    sos, zi, edge = _butter_sos(int(order), float(cutoff_hz), float(fs))
-    x0 = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
-    if x0.shape[0] <= edge:
-        raise ValueError(f"lowpass: {x0.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
-    flat = np.ascontiguousarray(x0.reshape(x0.shape[0], -1))
-    return np.moveaxis(_filtfilt(sos, zi, flat, edge).reshape(x0.shape), 0, axis)
-
-
-@kernel
-def _filtfilt(sos, zi, x, edge):        # pragma: no cover  (compiled)
-    T, C = x.shape
-    S = sos.shape[0]
-    L = T + 2 * edge
-    out = np.empty((T, C))
-    ext = np.empty(L)
-    z = np.empty((S, 2))
-    for c in range(C):
-        for k in range(edge):               # odd extension, as scipy's odd_ext
-            ext[k] = 2 * x[0, c] - x[edge - k, c]
-            ext[T + edge + k] = 2 * x[T - 1, c] - x[T - 2 - k, c]
-        for k in range(T):
-            ext[edge + k] = x[k, c]
-        for p in range(2):                  # forward, then over the reversed forward output
-            x_first = ext[0] if p == 0 else ext[L - 1]
-            for s in range(S):
-                z[s, 0] = zi[s, 0] * x_first
-                z[s, 1] = zi[s, 1] * x_first
-            for i in range(L):
-                n = i if p == 0 else L - 1 - i
-                x_cur = ext[n]
-                for s in range(S):
-                    x_new = sos[s, 0] * x_cur + z[s, 0]
-                    z[s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + z[s, 1]
-                    z[s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-                    x_cur = x_new
-                ext[n] = x_cur
-        for k in range(T):
-            out[k, c] = ext[edge + k]
-    return out
-
-
-@functools.lru_cache(maxsize=256)
-def _butter_sos(order: int, cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """(sos, sosfilt_zi, pad length) of a Butterworth low-pass, as ``sosfiltfilt`` derives them."""
-    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
-    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-    sos.flags.writeable = False
-    zi = signal.sosfilt_zi(sos)
-    zi.flags.writeable = False
-    return sos, zi, 3 * ntaps
-
-
-def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates: int = 120,
-                    fit_band: tuple[float, float] = (0.5, 0.95)) -> CutoffChoice:
-    """Winter's residual analysis: the cutoff (Hz) of a zero-phase Butterworth for ``x`` (T, C).
-
-    R(f_c) = rms(x - lowpass(x, f_c)) on candidates from 1 % to 95 % of Nyquist; a line fitted to
-    R over ``fit_band`` (fractions of Nyquist, where only noise is left) gives the noise rms a as
-    its value at f_c = 0; the cutoff is the lowest f_c with R(f_c) <= a (linear interpolation
-    between candidates).  Channels whose residual never reaches a (noise-free data) get the top
-    candidate.  Returns the largest channel cutoff, and each channel's cutoff and a.
-    """
-    x = np.asarray(x, dtype=float)
-    if x.ndim == 1:
-        x = x[:, None]
-    if x.ndim != 2 or x.shape[0] < 32:
-        raise ValueError(f"residual_cutoff: expected (T >= 32, C) samples, got shape {x.shape}")
-    nyq = 0.5 * fs
-    fc = np.linspace(0.01, 0.95, n_candidates) * nyq
-    res = np.empty((n_candidates, x.shape[1]))
-    for i, f in enumerate(fc):
-        res[i] = np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))
-    band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
-    slope, intercept = np.polyfit(fc[band], res[band], 1)
-    chosen = np.empty(x.shape[1])
-    for c in range(x.shape[1]):
-        below = np.nonzero(res[:, c] <= intercept[c])[0]
-        if below.size == 0 or intercept[c] <= 0:
-            chosen[c] = fc[-1]
-            continue
-        i = below[0]
-        if i == 0:
-            chosen[c] = fc[0]
-        else:                               # interpolate the crossing between candidates i-1, i
-            r0, r1 = res[i - 1, c], res[i, c]
-            w = (r0 - intercept[c]) / (r0 - r1) if r0 != r1 else 1.0
-            chosen[c] = fc[i - 1] + w * (fc[i] - fc[i - 1])
-    return CutoffChoice(float(chosen.max()), "residual analysis (Winter)", tuple(chosen.tolist()),
-                        tuple(np.maximum(intercept, 0.0).tolist()))
-
-
-def decimation_factor(fs: float, camera_rate_hz: float) -> int:
-    """Largest integer q with fs / q >= the camera rate (500 Hz, 30 Hz -> 16, i.e. 31.25 Hz)."""
-    if not (fs > 0 and camera_rate_hz > 0):
-        raise ValueError(f"rates must be positive, got {fs}, {camera_rate_hz}")
-    return max(1, int(np.floor(fs / camera_rate_hz + 1e-9)))
-
-
-def _stages(q: int) -> list[int]:
-    """Factors of q, each at most 13 (scipy's advice for IIR decimation), largest first."""
-    stages, rest = [], q
-    while rest > 1:
-        f = next((d for d in range(min(rest, 13), 1, -1) if rest % d == 0), None)
-        if f is None:
-            raise ValueError(f"decimation factor {q} has a prime factor above 13; use a rate with "
-                             f"small factors")
-        stages.append(f)
-        rest //= f
-    return stages
-
-
-@functools.lru_cache(maxsize=32)
-def _antialias(q: int) -> signal.dlti:
-    """scipy.signal.decimate's default filter (Chebyshev I, order 8, 0.05 dB, 0.8/q) with DC gain 1."""
-    b, a = signal.cheby1(8, 0.05, 0.8 / q)
-    return signal.dlti(b * (a.sum() / b.sum()), a)
-
-
-def decimate(x: npt.ArrayLike, q: int, axis: int = 0) -> np.ndarray:
-    """``scipy.signal.decimate`` by q in stages of at most 13, zero phase, unit DC gain.
-
-    Output sample k is input sample k*q (the zero-phase filter does not shift the signal).
-    """
-    y = np.asarray(x, dtype=float)
-    for f in _stages(q):
-        y = signal.decimate(y, f, ftype=_antialias(f), axis=axis, zero_phase=True)
-    return y
-
-
 class FastSignals(NamedTuple):
     """Control-rate signals for the online-estimator reconstructions (§5.5), over the whole log."""
 
@@ -338,7 +189,14 @@ class SlowChain(NamedTuple):
 
     def after_lowpass(self, v: npt.ArrayLike) -> np.ndarray:
         """The chain without its first low-pass (for signals already filtered and differentiated)."""
-        slow = decimate(v, self.q)[: self.n_grid][self.idx]
+        return self.after_decimation(self.decimated(v))
+
+    def decimated(self, v: npt.ArrayLike) -> np.ndarray:
+        """Decimation and the camera window: the part of the chain the common bandwidth does not change."""
+        return decimate(v, self.q)[: self.n_grid][self.idx]
+
+    def after_decimation(self, slow: np.ndarray) -> np.ndarray:
+        """The rest of the chain: the common-bandwidth low-pass and the trimming."""
         if self.common_hz is not None:
             slow = lowpass(slow, self.motor_rate_hz / self.q, self.common_hz, self.order)
         return slow[self.keep]
@@ -376,6 +234,9 @@ class Prepared:
     fast: FastSignals | None = None
     camera: tuple | None = None
     chain: SlowChain | None = None
+    # theta, theta_dot, theta_ddot and force decimated, before the common bandwidth: ``prepare``'s
+    # ``reuse`` takes them instead of filtering and decimating the same motor samples again
+    _decimated: dict | None = field(default=None, repr=False)
 
     @property
     def has_camera(self) -> bool:
@@ -406,12 +267,16 @@ def _cutoff(given: float | None, x: np.ndarray, fs: float, order: int) -> Cutoff
 
 
 def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
-            *, camera_rate_hz: float | None = None) -> Prepared:
+            *, camera_rate_hz: float | None = None, reuse: Prepared | None = None) -> Prepared:
     """Filter, differentiate, decimate and synchronise ``meas`` (see the module docstring).
 
     ``params`` gives the nominal geometry and drive (for eq 27); ``camera_rate_hz`` (default
-    ``params.sensors.camera_rate_hz``) sets the decimation factor.  Raises ValueError naming the
-    problem for a log that is too short, unevenly sampled, or whose camera does not overlap it.
+    ``params.sensors.camera_rate_hz``) sets the decimation factor.  ``reuse``: a preparation of the
+    very same motor arrays (``reuse.fast.theta is meas.theta``, likewise the forces) with the motor
+    cutoff given here, whose filtered and decimated motor signals are taken instead of computed
+    again (the camera-noise bootstrap prepares the same motors with new camera frames; the result
+    is the same bit for bit).  Raises ValueError naming the problem for a log that is too short,
+    unevenly sampled, or whose camera does not overlap it, and for a ``reuse`` of other motors.
     """
     s = settings or PreprocessSettings()
     n = params.n_joints
@@ -458,12 +323,17 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     refilter = s.common_bandwidth and common < 0.5 * rate * 0.95
     chain = SlowChain(fs, motor_cut.hz, q, t_grid.size, idx, common if refilter else None, keep, order)
 
-    theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
-    theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
-    theta_ddot = np.gradient(theta_dot, 1.0 / fs, axis=0)
+    if reuse is not None:
+        decimated, theta_dot = _reused(reuse, meas, chain)
+    else:
+        theta_f = lowpass(meas.theta, fs, motor_cut.hz, order)
+        theta_dot = np.gradient(theta_f, 1.0 / fs, axis=0)
+        theta_ddot = np.gradient(theta_dot, 1.0 / fs, axis=0)
+        decimated = {"theta": chain.decimated(theta_f), "theta_dot": chain.decimated(theta_dot),
+                     "theta_ddot": chain.decimated(theta_ddot),
+                     "force": chain.decimated(lowpass(meas.force, fs, motor_cut.hz, order))}
     fast = FastSignals(meas.t_motor, meas.theta, theta_dot, meas.force)
-    slow = {"theta": chain.after_lowpass(theta_f), "theta_dot": chain.after_lowpass(theta_dot),
-            "theta_ddot": chain.after_lowpass(theta_ddot), "force": chain(meas.force)}
+    slow = {k: chain.after_decimation(v) for k, v in decimated.items()}
     h = 1.0 / rate
     x_c: np.ndarray | None = None
     x_c_dot: np.ndarray | None = None
@@ -480,4 +350,20 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
 
     return Prepared(t=t[keep], **slow, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot,
                     x_c=x_c, x_c_dot=x_c_dot, x_c_ddot=x_c_ddot, motor_rate_hz=fs, rate_hz=rate, decimation=q,
-                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain)
+                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated)
+
+
+def _reused(reuse: Prepared, meas: Measurements, chain: SlowChain) -> tuple[dict, np.ndarray]:
+    """(decimated motor signals, control-rate motor speeds) of ``reuse``, checked to be those of
+    ``meas``'s motor arrays through the same chain up to its common bandwidth."""
+    old, decimated, fast = reuse.chain, reuse._decimated, reuse.fast
+    if (decimated is None or fast is None or old is None or fast.theta is not meas.theta
+            or fast.force is not meas.force):
+        raise ValueError("reuse: not a preparation of these motor samples (the same theta and force arrays)")
+    same = (old.motor_rate_hz, old.motor_hz, old.order, old.q, old.n_grid) == (
+        chain.motor_rate_hz, chain.motor_hz, chain.order, chain.q, chain.n_grid)
+    if not (same and np.array_equal(old.idx, chain.idx)):
+        raise ValueError(f"reuse: prepared with motor cutoff {old.motor_hz:.6g} Hz and decimation {old.q} on its own "
+                         f"camera window, here {chain.motor_hz:.6g} Hz and {chain.q}: give the same motor cutoff "
+                         "and camera times")
+    return decimated, fast.theta_dot

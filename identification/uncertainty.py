@@ -266,7 +266,7 @@ def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | Non
     reps: dict = {}
     for _ in range(n):
         m = Measurements(fast.t, fast.theta, fast.force, tc, clean + sigma * rng.standard_normal(clean.shape))
-        p = prepare(m, params, fixed, camera_rate_hz=rate)
+        p = prepare(m, params, fixed, camera_rate_hz=rate, reuse=prep)
         if p.n_samples != prep.n_samples:
             raise RuntimeError("camera noise bootstrap: the replicate's grid differs from the log's")
         for name, v in refit(p, params, taut, weight=weight, models=models).items():

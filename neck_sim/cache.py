@@ -1,17 +1,33 @@
-"""Where neck-sim keeps what it compiles: one user cache directory, never beside the sources.
+"""Where neck-sim keeps what it compiles or plans: one user cache directory, never beside the sources.
 
 ``$NECK_SIM_CACHE`` if set, else ``$XDG_CACHE_HOME/neck_sim``, else ``~/.cache/neck_sim``; when
 that cannot be created or written, a per-user folder in the system's temporary directory.  It holds
-the compiled plant callback (:mod:`neck_sim.native`) and the numba kernels (:mod:`neck_sim.jit`);
-everything in it is rebuilt on demand, so deleting it is always safe.
+the compiled plant callback (:mod:`neck_sim.native`), the numba kernels (:mod:`neck_sim.jit`) and
+the results of :func:`memo` (``memo/<digest>/``: the paths planned for necks the paper's laws cannot
+move, seconds of static solves each); everything in it is rebuilt on demand, so deleting it is
+always safe.
+
+Usage::
+
+    from neck_sim.cache import memo
+    path = memo("shapes_tour", (params, 0.25), lambda: plan(params, 0.25))
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
+import pickle
 import tempfile
+from typing import Callable, Hashable, TypeVar
 
-__all__ = ["cache_dir"]
+__all__ = ["cache_dir", "source_digest", "memo"]
+
+T = TypeVar("T")
+_PACKAGES = ("neck_sim", "controllers", "identification")      # pyproject's packages
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_MEMORY: dict[tuple[str, str], bytes] = {}
 
 
 def _configured() -> str:
@@ -35,3 +51,69 @@ def cache_dir() -> str:
     d = os.path.join(tempfile.gettempdir(), f"neck_sim_cache_{os.getuid() if hasattr(os, 'getuid') else 0}")
     os.makedirs(d, exist_ok=True)
     return d
+
+
+@functools.lru_cache(maxsize=1)
+def source_digest(root: str = _ROOT) -> str:
+    """sha256 (hex) of every ``.py`` file of the three packages under ``root``, names and texts:
+    any change to the code gives a new digest, so :func:`memo` never returns what older code made."""
+    h = hashlib.sha256()
+    for pkg in _PACKAGES:
+        for folder, dirs, files in os.walk(os.path.join(root, pkg)):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            for name in sorted(f for f in files if f.endswith(".py")):
+                path = os.path.join(folder, name)
+                h.update(os.path.relpath(path, root).replace(os.sep, "/").encode() + b"\0")
+                with open(path, "rb") as fh:
+                    h.update(fh.read() + b"\0")
+    return h.hexdigest()
+
+
+def memo(kind: str, key: Hashable, compute: Callable[[], T]) -> T:
+    """``compute()``, computed once per (``kind``, ``key``) for this version of the code: kept in this
+    process and in ``<cache_dir>/memo/<source digest>/`` (shared by processes), as a pickle, so
+    every caller gets its own copy.  ``key`` must have a ``repr`` that determines the result (frozen
+    dataclasses of floats and tuples, such as :class:`neck_sim.params.NeckParams`, do).  A cache file
+    that cannot be read or written is ignored: the result is computed."""
+    name = f"{kind}-{hashlib.sha256(repr((key, _versions())).encode()).hexdigest()[:32]}.pkl"
+    blob = _MEMORY.get((kind, name))
+    if blob is not None:
+        return pickle.loads(blob)
+    folder = os.path.join(cache_dir(), "memo", source_digest()[:20])
+    path = os.path.join(folder, name)
+    try:
+        with open(path, "rb") as fh:
+            blob = fh.read()
+        return _remember(kind, name, blob, pickle.loads(blob))
+    except Exception:            # missing, torn or written by an incompatible interpreter: computed
+        pass
+    value = compute()
+    blob = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    try:
+        from neck_sim.atomic import atomic_write_bytes
+
+        os.makedirs(folder, exist_ok=True)
+        atomic_write_bytes(path, blob)
+    except OSError:
+        pass
+    return _remember(kind, name, blob, value)
+
+
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple:
+    """Python's and the numerical libraries' versions: a new release can move a result's last bits."""
+    import sys
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = [sys.version]
+    for dist in ("numpy", "scipy", "mujoco"):
+        try:
+            out.append(f"{dist} {version(dist)}")
+        except PackageNotFoundError:
+            out.append(f"{dist} -")
+    return tuple(out)
+
+
+def _remember(kind: str, name: str, blob: bytes, value: T) -> T:
+    _MEMORY[kind, name] = blob
+    return value

@@ -81,6 +81,21 @@ def test_decimate_keeps_unit_gain_and_alignment():
     assert np.max(np.abs(y[mid] - wave[::16][mid])) < 1e-3
 
 
+@pytest.mark.parametrize("shape, axis, q", [((7500, 4), 0, 16), ((3, 2000), 1, 12), ((2000,), 0, 3),
+                                            ((600, 2, 3), 0, 26)])
+def test_decimate_is_scipys_staged_decimate_bit_for_bit(shape, axis, q):
+    """Each stage is scipy.signal.decimate with the unit-gain filter, its coefficients derived once."""
+    from scipy import signal
+
+    x = np.random.default_rng(5).normal(size=shape).cumsum(axis=axis)
+    ref = x
+    for f in {16: (8, 2), 12: (12,), 3: (3,), 26: (13, 2)}[q]:
+        b, a = signal.cheby1(8, 0.05, 0.8 / f)
+        ref = signal.decimate(ref, f, ftype=signal.dlti(b * (a.sum() / b.sum()), a), axis=axis, zero_phase=True)
+    for _ in range(2):                                  # the second call reads the cached coefficients
+        assert np.array_equal(decimate(x, q, axis), ref)
+
+
 def test_decimation_factor_is_the_papers():
     assert decimation_factor(500.0, 30.0) == 16          # 31.25 Hz
     assert decimation_factor(500.0, 31.25) == 16
@@ -153,6 +168,32 @@ def test_bad_measurements_are_refused(run, params):
     with pytest.raises(ValueError, match=rf"camera.alpha: expected shape \({tc.size}, 10\) for the routing's "
                                          rf"10 joints, got \({tc.size}, 3\)"):
         prepare(Measurements(t, th, f, tc, cam3), example_params("neck10x4"))
+
+
+def test_a_replicate_reusing_the_motor_side_is_prepared_bit_for_bit(run, params):
+    """The camera-noise bootstrap's replicate: new camera frames, the log's own motor arrays and motor
+    cutoff.  Prepared with ``reuse`` (the motor signals taken from the log's preparation) and without
+    (computed again): the same arrays, bit for bit; other motors or another cutoff are refused."""
+    rng = np.random.default_rng(0)
+    meas = synthetic_measurements(run, params, rng)
+    prep = prepare(meas, params)
+    fixed = PreprocessSettings(motor_cutoff_hz=prep.cutoffs["motors"].hz)
+    other = Measurements(meas.t_motor, meas.theta, meas.force, meas.t_camera,
+                         meas.alpha_camera + np.radians(1.0) * rng.standard_normal(meas.alpha_camera.shape))
+    fresh = prepare(other, params, fixed)
+    reused = prepare(other, params, fixed, reuse=prep)
+    # the new frames moved the common bandwidth, which the reused motor signals go through again
+    assert reused.cutoffs["common"].hz != prep.cutoffs["common"].hz
+    assert reused.cutoffs == fresh.cutoffs
+    for name in ("t", "theta", "theta_dot", "theta_ddot", "force", "alpha", "alpha_dot", "alpha_ddot", "x_c",
+                 "x_c_dot", "x_c_ddot"):
+        assert np.array_equal(getattr(reused, name), getattr(fresh, name)), name
+    assert np.array_equal(reused.fast.theta_dot, fresh.fast.theta_dot)
+    with pytest.raises(ValueError, match="same theta and force arrays"):
+        prepare(Measurements(meas.t_motor, meas.theta.copy(), meas.force, meas.t_camera, meas.alpha_camera), params,
+                fixed, reuse=prep)
+    with pytest.raises(ValueError, match="motor cutoff"):
+        prepare(other, params, PreprocessSettings(motor_cutoff_hz=0.5 * fixed.motor_cutoff_hz), reuse=prep)
 
 
 def test_chain_takes_any_control_rate_signal_to_the_slow_grid(run, params):

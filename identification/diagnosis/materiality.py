@@ -15,6 +15,11 @@ channel must improve by the share of its channel that the step's minimum asks of
 (:data:`REFERENCE_TORQUE_CHANNELS` x 2 x ``min_improvement``: 12 % at the default 2 %), and the
 whole score must not get worse on held-out data.
 
+Such a term is held to whichever of its two comparisons (the whole score, its own channel) is
+the more convincing, so both p values of both are multiplied by :data:`CHANNEL_TESTS` (Bonferroni
+over the two: the better of two tests at alpha passes up to twice as often as one named in advance
+under no effect; the two share the joint's channel, so the factor is an upper bound).
+
     >>> from identification.diagnosis.materiality import own_channels, own_comparison
     >>> own_channels(term, n_joints=10)          # doctest: +SKIP
     [4]
@@ -30,12 +35,16 @@ import numpy as np
 from identification.diagnosis.statistics import (Comparison, effective_samples, f_test_p, improvement, in_band,
                                                  mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "own_channels", "own_min_improvement", "own_comparison", "own_significant",
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "p_times", "own_channels", "own_min_improvement", "own_comparison", "own_significant",
            "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
 REFERENCE_TORQUE_CHANNELS = 3
+
+#: The comparisons a one-joint term may be held to (the whole score and its own channel), the
+#: factor on the p values of both (:func:`candidate_decision`).
+CHANNEL_TESTS = 2
 
 
 def own_channels(term, n_joints: int) -> list[int]:
@@ -99,13 +108,15 @@ def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[
     (:func:`own_comparison`, None for a term acting everywhere) were measured at step ``ctx``.
 
     A term with own channels passes on either: the whole score (the step's rule) or its own
-    channel (:func:`own_significant`); the one with the larger margin in borderline bands is the
-    one it is held to and reported with (its p values; the improvement stays the whole score's,
-    which ranks the step's candidates)."""
+    channel (:func:`own_significant`), the p values of both times :data:`CHANNEL_TESTS` (the better
+    of two tests is taken); the one with the larger margin in borderline bands is the one it is
+    held to and reported with (its p values; the improvement stays the whole score's, which ranks
+    the step's candidates).  A term without own channels is held to ``whole`` unchanged."""
     s = ctx.settings
-    margins = ctx.candidate_margins(whole)
     if own is None:
-        return ctx.candidate_significant(whole), whole, margins, ""
+        return ctx.candidate_significant(whole), whole, ctx.candidate_margins(whole), ""
+    whole, own = p_times(whole, CHANNEL_TESTS), p_times(own, CHANNEL_TESTS)
+    margins = ctx.candidate_margins(whole)
     own_min = own_min_improvement(s.min_improvement)
     own_margins = own.margins(ctx.alpha_candidate, own_min)
     if whole.improvement < 0:
@@ -117,3 +128,8 @@ def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[
             f"(minimum {100 * own_min:.0f} %), whole score {100 * whole.improvement:.2f} %")
     return own_significant(own, whole, ctx.alpha_candidate, s.min_improvement), \
         dataclasses.replace(whole, p_holdout=own.p_holdout, p_train=own.p_train), own_margins, note
+
+
+def p_times(cmp: Comparison, factor: int) -> Comparison:
+    """``cmp`` with both p values multiplied by ``factor`` (capped at 1)."""
+    return dataclasses.replace(cmp, p_holdout=min(1.0, factor * cmp.p_holdout), p_train=min(1.0, factor * cmp.p_train))

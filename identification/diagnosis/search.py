@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from itertools import product
 
@@ -11,6 +10,7 @@ from scipy import optimize
 
 from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model, grid_of
 from identification.diagnosis.fitting import StepContext, fit_baseline
+from identification.diagnosis.materiality import p_times
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
 from identification.diagnosis import columns as effect_columns
@@ -128,10 +128,7 @@ def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Com
     the best of N joints would pass a test at alpha about N times as often as one joint named in
     advance."""
     places = term.identification.places(dict(term.shape), n_joints)
-    if places == 1:
-        return comparison
-    return dataclasses.replace(comparison, p_holdout=min(1.0, places * comparison.p_holdout),
-                               p_train=min(1.0, places * comparison.p_train))
+    return comparison if places == 1 else p_times(comparison, places)
 
 
 def search_one_cable(ctx: StepContext, trial, name: str, shape: Shape):

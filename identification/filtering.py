@@ -1,0 +1,213 @@
+"""Zero-phase filters of the pre-processing (:mod:`identification.preprocessing`, paper §5.2.1).
+
+Winter's residual analysis for the cutoffs (:func:`residual_cutoff`), the zero-phase Butterworth
+low-pass (:func:`lowpass`: ``scipy.signal.sosfiltfilt`` bit for bit, compiled) and the staged
+zero-phase decimation (:func:`decimate`: ``scipy.signal.decimate`` bit for bit, its filter's
+coefficients derived once); the module docstring of :mod:`identification.preprocessing` says
+why each is chosen.  Frequencies in Hz, signals along ``axis`` (default 0).
+
+Usage::
+
+    from identification.filtering import decimate, lowpass, residual_cutoff
+    cut = residual_cutoff(theta, 500.0)                  # theta (T, m) rad at 500 Hz
+    slow = decimate(lowpass(theta, 500.0, cut.hz), 16)   # 31.25 Hz
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+from scipy import signal
+
+from neck_sim.jit import kernel
+
+__all__ = ["CutoffChoice", "residual_cutoff", "lowpass", "decimation_factor", "decimate"]
+
+
+class CutoffChoice(NamedTuple):
+    """A cutoff (Hz) with how it was chosen: per-channel cutoffs and noise rms (residual analysis)."""
+
+    hz: float
+    method: str                       # "residual analysis (Winter)" or "given"
+    per_channel_hz: tuple = ()
+    noise_rms: tuple = ()             # intercept a of the residual line, signal units
+
+
+def lowpass(x: npt.ArrayLike, fs: float, cutoff_hz: float, order: int = 4, axis: int = 0) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (forward and reverse) along ``axis``: ``scipy.signal.
+    sosfiltfilt``'s arithmetic bit for bit (odd extension of 3 x its taps at both ends, each pass
+    started from ``sosfilt_zi`` times its first sample, sosfilt's direct form II transposed), in one
+    compiled call with the design cached: the residual analysis filters a short signal at 120
+    cutoffs on every bootstrap replicate, where scipy's per-call set-up cost more than the filtering."""
+    nyq = 0.5 * fs
+    if not 0 < cutoff_hz < nyq:
+        raise ValueError(f"cutoff: {cutoff_hz:.4g} Hz must lie in (0, {nyq:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
+    sos, zi, edge = _butter_sos(int(order), float(cutoff_hz), float(fs))
+    x0 = np.asarray(x, dtype=float)
+    if axis != 0:           # the usual axis 0 skips moveaxis's checks: 120 calls per residual analysis
+        x0 = np.moveaxis(x0, axis, 0)
+    if x0.shape[0] <= edge:
+        raise ValueError(f"lowpass: {x0.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
+    y = _filtfilt(sos, zi, np.ascontiguousarray(x0.reshape(x0.shape[0], -1)), edge).reshape(x0.shape)
+    return y if axis == 0 else np.moveaxis(y, 0, axis)
+
+
+@kernel
+def _filtfilt(sos, zi, x, edge):        # pragma: no cover  (compiled)
+    T, C = x.shape
+    S = sos.shape[0]
+    L = T + 2 * edge
+    out = np.empty((T, C))
+    ext = np.empty(L)
+    z = np.empty((S, 2))
+    for c in range(C):
+        for k in range(edge):               # odd extension, as scipy's odd_ext
+            ext[k] = 2 * x[0, c] - x[edge - k, c]
+            ext[T + edge + k] = 2 * x[T - 1, c] - x[T - 2 - k, c]
+        for k in range(T):
+            ext[edge + k] = x[k, c]
+        for p in range(2):                  # forward, then over the reversed forward output
+            x_first = ext[0] if p == 0 else ext[L - 1]
+            for s in range(S):
+                z[s, 0] = zi[s, 0] * x_first
+                z[s, 1] = zi[s, 1] * x_first
+            for i in range(L):
+                n = i if p == 0 else L - 1 - i
+                x_cur = ext[n]
+                for s in range(S):
+                    x_new = sos[s, 0] * x_cur + z[s, 0]
+                    z[s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + z[s, 1]
+                    z[s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+                    x_cur = x_new
+                ext[n] = x_cur
+        for k in range(T):
+            out[k, c] = ext[edge + k]
+    return out
+
+
+# room for both residual analyses' 120 candidates (motors and camera) and a bootstrap's new cutoffs:
+# at 256 the motors' candidates were designed again for every log of a series
+@functools.lru_cache(maxsize=4096)
+def _butter_sos(order: int, cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """(sos, sosfilt_zi, pad length) of a Butterworth low-pass, as ``sosfiltfilt`` derives them."""
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    sos.flags.writeable = False
+    zi = signal.sosfilt_zi(sos)
+    zi.flags.writeable = False
+    return sos, zi, 3 * ntaps
+
+
+def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates: int = 120,
+                    fit_band: tuple[float, float] = (0.5, 0.95)) -> CutoffChoice:
+    """Winter's residual analysis: the cutoff (Hz) of a zero-phase Butterworth for ``x`` (T, C).
+
+    R(f_c) = rms(x - lowpass(x, f_c)) on candidates from 1 % to 95 % of Nyquist; a line fitted to
+    R over ``fit_band`` (fractions of Nyquist, where only noise is left) gives the noise rms a as
+    its value at f_c = 0; the cutoff is the lowest f_c with R(f_c) <= a (linear interpolation
+    between candidates).  Channels whose residual never reaches a (noise-free data) get the top
+    candidate.  Returns the largest channel cutoff, and each channel's cutoff and a.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2 or x.shape[0] < 32:
+        raise ValueError(f"residual_cutoff: expected (T >= 32, C) samples, got shape {x.shape}")
+    nyq = 0.5 * fs
+    fc = np.linspace(0.01, 0.95, n_candidates) * nyq
+    res = np.empty((n_candidates, x.shape[1]))
+    for i, f in enumerate(fc):
+        res[i] = np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))
+    band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
+    slope, intercept = np.polyfit(fc[band], res[band], 1)
+    chosen = np.empty(x.shape[1])
+    for c in range(x.shape[1]):
+        below = np.nonzero(res[:, c] <= intercept[c])[0]
+        if below.size == 0 or intercept[c] <= 0:
+            chosen[c] = fc[-1]
+            continue
+        i = below[0]
+        if i == 0:
+            chosen[c] = fc[0]
+        else:                               # interpolate the crossing between candidates i-1, i
+            r0, r1 = res[i - 1, c], res[i, c]
+            w = (r0 - intercept[c]) / (r0 - r1) if r0 != r1 else 1.0
+            chosen[c] = fc[i - 1] + w * (fc[i] - fc[i - 1])
+    return CutoffChoice(float(chosen.max()), "residual analysis (Winter)", tuple(chosen.tolist()),
+                        tuple(np.maximum(intercept, 0.0).tolist()))
+
+
+def decimation_factor(fs: float, camera_rate_hz: float) -> int:
+    """Largest integer q with fs / q >= the camera rate (500 Hz, 30 Hz -> 16, i.e. 31.25 Hz)."""
+    if not (fs > 0 and camera_rate_hz > 0):
+        raise ValueError(f"rates must be positive, got {fs}, {camera_rate_hz}")
+    return max(1, int(np.floor(fs / camera_rate_hz + 1e-9)))
+
+
+def _stages(q: int) -> list[int]:
+    """Factors of q, each at most 13 (scipy's advice for IIR decimation), largest first."""
+    stages, rest = [], q
+    while rest > 1:
+        f = next((d for d in range(min(rest, 13), 1, -1) if rest % d == 0), None)
+        if f is None:
+            raise ValueError(f"decimation factor {q} has a prime factor above 13; use a rate with "
+                             f"small factors")
+        stages.append(f)
+        rest //= f
+    return stages
+
+
+@functools.lru_cache(maxsize=32)
+def _antialias(q: int) -> signal.dlti:
+    """scipy.signal.decimate's default filter (Chebyshev I, order 8, 0.05 dB, 0.8/q) with DC gain 1."""
+    b, a = signal.cheby1(8, 0.05, 0.8 / q)
+    return signal.dlti(b * (a.sum() / b.sum()), a)
+
+
+@functools.lru_cache(maxsize=32)
+def _antialias_coefficients(q: int) -> tuple[np.ndarray, ...]:
+    """What ``scipy.signal.decimate`` and ``filtfilt`` derive from :func:`_antialias` (q) on every
+    call, derived once: (b, a, lfilter_zi) when a pole is complex (scipy's transfer-function
+    branch), else (sos,) (its second-order sections)."""
+    f = _antialias(q)
+    system = f._as_zpk()          # a polynomial root finding: the per-call cost saved here
+    if any(np.iscomplex(system.poles)) or np.iscomplex(system.gain):
+        tf = f._as_tf()
+        b, a = np.atleast_1d(np.array(tf.num)), np.atleast_1d(np.array(tf.den))
+        out: tuple[np.ndarray, ...] = (b, a, signal.lfilter_zi(b, a))
+    else:
+        out = (np.asarray(signal.zpk2sos(system.zeros, system.poles, system.gain), dtype=float),)
+    for c in out:
+        c.flags.writeable = False
+    return out
+
+
+def _filtfilt_tf(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.filtfilt(b, a, x, axis=0)`` (odd extension of 3 max(len(a), len(b)) samples,
+    each pass of ``lfilter`` started from ``zi`` times its first sample) with ``zi`` given."""
+    edge = 3 * max(a.size, b.size)
+    if x.shape[0] <= edge:
+        raise ValueError(f"decimate: {x.shape[0]} samples; its zero-phase anti-aliasing filter needs more than {edge}")
+    ext = np.concatenate((2 * x[:1] - x[edge:0:-1], x, 2 * x[-1:] - x[-2:-(edge + 2):-1]), axis=0)
+    z = zi.reshape((zi.size,) + (1,) * (x.ndim - 1))
+    y, _ = signal.lfilter(b, a, ext, axis=0, zi=z * ext[:1])
+    y, _ = signal.lfilter(b, a, y[::-1], axis=0, zi=z * y[-1:])
+    return y[::-1][edge:-edge]
+
+
+def decimate(x: npt.ArrayLike, q: int, axis: int = 0) -> np.ndarray:
+    """``scipy.signal.decimate`` by q in stages of at most 13, zero phase, unit DC gain.
+
+    Output sample k is input sample k*q (the zero-phase filter does not shift the signal).  Each
+    stage is scipy's zero-phase IIR decimation bit for bit, with what scipy derives from the filter
+    on every call derived once (:func:`_antialias_coefficients`): the bootstrap decimates every
+    replicate's signals again.
+    """
+    y = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
+    for f in _stages(q):
+        c = _antialias_coefficients(f)
+        y = (_filtfilt_tf(*c, y) if len(c) == 3 else signal.sosfiltfilt(c[0], y, axis=0))[::f]
+    return np.moveaxis(y, 0, axis)
