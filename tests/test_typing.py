@@ -32,8 +32,8 @@ PUBLIC_MODULES = [
     "controllers.elastic_lqr", "controllers.estimators", "controllers.plots", "controllers.reachable_paths",
     "controllers.selection", "controllers.tension", "controllers.underactuated",
     "identification.excitation", "identification.gaps", "identification.least_squares", "identification.plots",
-    "identification.paper", "identification.preprocessing", "identification.regressors", "identification.simulator",
-    "identification.uncertainty",
+    "identification.paper", "identification.filtering", "identification.preprocessing", "identification.regressors",
+    "identification.simulator", "identification.uncertainty",
     # the package faces and the modules they export from
     "neck_sim", "controllers", "identification",
     "neck_sim.validation", "neck_sim.lazy", "neck_sim.params", "neck_sim.plant", "neck_sim.plant_spec", "neck_sim.effects",
