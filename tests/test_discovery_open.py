@@ -214,7 +214,7 @@ def multisine(tmp_path_factory):
 def test_a_one_cable_friction_is_held_out_on_its_own_channel(multisine):
     """A Stribeck bump of 7.7 N on cable 2, multisine seed 2: 11.6 % of the whole score, F-test
     p 5e-6, but the held-out chunks pooled over the 7 channels give p 0.0013 against 0.001; on its
-    best channel (joint torque 2) p 2.5e-9, 3e-8 times its 7 channels.  ``stribeck_friction``
+    best channel (joint torque 2) p 2.5e-9, 1.8e-8 times its 7 channels.  ``stribeck_friction``
     alone, on cable 2, held out there."""
     spec, diag = multisine("stribeck_friction", 2)
     assert diag.verdict == "stribeck_friction", (spec.description, diag.verdict, diag.notes)
