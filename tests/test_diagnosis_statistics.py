@@ -8,7 +8,8 @@ from scipy.stats import rankdata
 
 from identification.diagnosis.search import minimise_bounded
 from identification.diagnosis.split import Split
-from identification.diagnosis.statistics import (Comparison, chunk_reductions, clearly_nonzero, effective_samples,
+from identification.diagnosis.statistics import (Comparison, channel_wilcoxon_p, chunk_reductions, clearly_nonzero,
+                                                 effective_samples,
                                                  encompassing_outcome, f_test_p, improvement, score, wilcoxon_p)
 
 
@@ -51,6 +52,28 @@ def test_f_test_p_is_uniform_under_the_null_and_small_under_an_effect():
     p_effect = [f_test_p(*_nested_ols(rng, 40, 1.0)) for _ in range(50)]
     assert np.median(p_effect) < 1e-6
     assert f_test_p(1.0, 1.2, 2, 30) == 1.0 and f_test_p(1.0, 0.5, 0, 30) == 1.0
+
+
+def test_channel_wilcoxon_p_finds_a_one_channel_gain_the_pooled_test_dilutes():
+    """One channel of seven improves (its residual halved), the others change by noise: on that
+    channel the per-chunk reductions are the exact signed-rank test's, while pooled with the others
+    (each weighted by its share of S) the gain sinks in their noise."""
+    rng = np.random.default_rng(5)
+    S, n_chunks = 320, 16
+    chunk = np.repeat(np.arange(n_chunks), S // n_chunks)
+    split = type("Chunks", (), {"chunk": chunk})()
+    base = rng.normal(size=(S, 7))
+    cand = 0.8 * base + rng.normal(scale=0.6, size=base.shape)     # the same variance: noise
+    cand[:, 1] = 0.5 * base[:, 1]
+    cand[::7, 4] = np.nan                       # slack samples of a cable: left out of its sums
+    p = channel_wilcoxon_p(base, cand, split)
+    for k in (1, 3):
+        d = np.nan_to_num(base[:, k]) ** 2 - np.nan_to_num(cand[:, k]) ** 2
+        red = np.array([d[chunk == c].sum() for c in range(n_chunks)])
+        assert p[k] == pytest.approx(_exact_signed_rank_p(red), rel=1e-9)
+    assert int(np.argmin(p)) == 1 and 7 * p[1] < 1e-3
+    pooled = wilcoxon_p(chunk_reductions(base, cand, split, np.ones(7), 3))
+    assert pooled > 7 * p[1]
 
 
 def test_chunk_reductions_sum_to_the_score_difference():

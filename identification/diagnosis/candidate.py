@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -9,11 +10,11 @@ import numpy as np
 
 from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
-from identification.diagnosis.search import located_comparison, search_shape, shape_grid
+from identification.diagnosis.search import located_comparison, search_one_joint, search_shape, shape_grid
 from identification.diagnosis.materiality import candidate_decision, own_comparison
 from identification.diagnosis.support import log_support, separability_gap, unsupported_items
-from identification.diagnosis.statistics import (block_scores, clearly_nonzero, explained_share, in_band, margin_ratio,
-                                                 score)
+from identification.diagnosis.statistics import (Comparison, block_scores, channel_wilcoxon_p, clearly_nonzero,
+                                                 explained_share, in_band, margin_ratio, score)
 
 
 @dataclass(frozen=True)
@@ -238,6 +239,35 @@ def separability(ctx: StepContext, term: Term, fit: Fit) -> tuple[Separability, 
     return tuple(out)
 
 
+def channel_names(n_joints: int, n_cables: int) -> list[str]:
+    """The residual channels' names in the (S, N + C) arrays' order."""
+    return [f"joint torque {j + 1}" for j in range(n_joints)] + [f"cable {i + 1}" for i in range(n_cables)]
+
+
+def channel_holdout(ctx: StepContext, ev: Evaluated, whole: Comparison, term: Term) -> tuple[Comparison, str]:
+    """``whole`` (the candidate's comparison, p values times its places) with its held-out p the
+    smaller of the pooled one and its best channel's (:func:`~identification.diagnosis.statistics.
+    channel_wilcoxon_p`) times the N + C channels it may pick and its places (Bonferroni), and a
+    note naming that channel ("" when the pooled test stands).  An effect on one cable or joint
+    shows on a few channels; pooled with the others' noise its held-out gain can fail the test its
+    training F-test passes by decades (a Stribeck bump on cable 2 of a 12 s multisine: pooled p
+    0.0013, joint torque 2 alone 2.5e-9).  The candidate still needs its improvement of the whole
+    score and its training F-test on it, which bound its false-alarm level at alpha / K whatever
+    the held-out test; a clean log's best channel is calibrated in docs/diagnosis.md."""
+    if not ctx.settings.channel_holdout:
+        return whole, ""
+    p = channel_wilcoxon_p(ctx.base.cv, ev.cv, ctx.split)
+    k = int(np.argmin(p))
+    factor = p.size * term.identification.places(dict(term.shape), ctx.data.n)
+    p_best = min(1.0, factor * float(p[k]))
+    if not p_best < whole.p_holdout:
+        return whole, ""
+    name = channel_names(ctx.data.n, ctx.data.C)[k]
+    note = (f"held out on its best channel ({name}): Wilcoxon p {p_best:.2g} with {factor} places "
+            f"(pooled {whole.p_holdout:.2g})")
+    return dataclasses.replace(whole, p_holdout=p_best), note
+
+
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     """Fit base + ``name`` with its shape parameters chosen on the primary training folds
     (:func:`~identification.diagnosis.search.search_shape`, or a bounded search per cable for the
@@ -260,10 +290,29 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
         return CandidateScore(Term(name, shape_grid(name)[0]), None, 0, math.nan, math.nan, 0.0, 0.0, {}, 1.0, 1.0,
                               False, False, "not identifiable: " + (notes[0] if notes else "no fit"),
                               {}, -math.inf, ctx.alpha_candidate)
+    cand = _scored(ctx, best)
+    if best[1].identification.locates_joint and best[1].get("joint") is None and not cand.passes_tests:
+        # every joint at once passed its training F-test but fails held out: its columns on the
+        # joints without the effect fit noise there (a side spring's error on joint 2 of a 12 s
+        # multisine: joint torque 2 99 % better held out, joints 1 and 3 41 % and 16 % worse).  The
+        # one-joint form, whose 2 N places already pay for having tried both forms (Bonferroni:
+        # alpha / 2 for every joint, alpha / 2N for each joint alone), is scored as well
+        one = search_one_joint(ctx, trial, name, best)
+        if one is not None:
+            alt = _scored(ctx, one)
+            if (alt.passes_tests, alt.margin) > (cand.passes_tests, cand.margin):
+                cand = alt
+    return cand
+
+
+def _scored(ctx: StepContext, best) -> CandidateScore:
+    """The :class:`CandidateScore` of a searched entry ``best`` (training score, term, fit) of the
+    step ``ctx``: cross-validated, tested against the step's baseline, its separability."""
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
-    whole = located_comparison(ctx.compare(ctx.base, ev, added), term, ctx.data.n)
+    whole, channel_note = channel_holdout(ctx, ev, located_comparison(ctx.compare(ctx.base, ev, added), term,
+                                                                       ctx.data.n), term)
     # a one-joint term is also measured where it acts (its joint's torque channel)
     passes, cmp, margins, own_note = candidate_decision(ctx, whole, own_comparison(ctx, ctx.base, ev, term, added))
     every = np.ones(ctx.data.S, bool)
@@ -271,7 +320,7 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
     valid, why = sign_ok(fit, term)
-    why = "; ".join(x for x in (why, own_note) if x)
+    why = "; ".join(x for x in (why, own_note, channel_note) if x)
     s = ctx.settings
     sep = separability(ctx, term, fit)
     bound = s.support.max_explained

@@ -66,7 +66,9 @@ def format_summary(diag) -> str:
              f"verdict: {diag.verdict}" + (f" ({'borderline' if diag.borderline else 'margins'}: {margin_text(diag)})"
                                             if margin_text(diag) else "")]
     if diag.gaps:
-        lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else ":"))
+        lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else
+                                                       " (a gain it cannot attribute):" if diag.verdict ==
+                                                       "insufficient_excitation" else ":"))
         lines += [f"      {g.describe()}" for g in diag.gaps]
     for f in diag.findings:
         ev = f.evidence

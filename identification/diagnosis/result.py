@@ -199,7 +199,9 @@ class Diagnosis:
         cannot tell apart), "none" when nothing was found, with ``UNEXPLAINED`` when the final
         model leaves structure beyond noise: alone instead of "none", appended to the names
         otherwise (a name whose gain does not stand without that structure, the leftover's
-        ``borrowed``, is left out)."""
+        ``borrowed``, is left out).  ``insufficient_excitation`` also instead of "none" when a
+        candidate passed its tests but was refused (:attr:`unattributed`): the model does not
+        explain the data to within its noise, and the log cannot say what it lacks."""
         if self.insufficient:
             return INSUFFICIENT_EXCITATION
         names = []
@@ -212,8 +214,15 @@ class Diagnosis:
         if self.leftover is not None and self.leftover.significant:
             names.append(UNEXPLAINED)
         if not names:
-            return NONE
+            return INSUFFICIENT_EXCITATION if self.unattributed else NONE
         return names[0] if len(names) == 1 else names
+
+    @property
+    def unattributed(self) -> tuple:
+        """The candidates that passed their tests but were not named because the log cannot
+        separate them from the baseline (``CandidateScore.refused``: a rest elongation on a cable
+        whose tension never spans 15 N): a gain beyond noise that the log cannot attribute."""
+        return tuple(c for st in self.steps for c in st.candidates if c.refused)
 
     def margins(self) -> dict:
         """How far the verdict is from flipping, in borderline bands (> 1: clear): per step, the

@@ -110,6 +110,9 @@ class DiagnosisSettings:
     # and the structure z and rho, decades for p values
     borderline: float = 0.1
     borderline_decades: float = 0.3
+    # the held-out test may also be read on the candidate's best channel (times the N + C channels
+    # it may pick): an effect on one cable or joint is diluted by the other channels' noise when pooled
+    channel_holdout: bool = True
 
     def __post_init__(self):
         if self.moves_per_block < 1 or self.holdout_every < 2:
@@ -128,7 +131,8 @@ class DiagnosisSettings:
                 "min_improvement": self.min_improvement, "alpha": self.alpha, "max_steps": self.max_steps,
                 "candidates": list(self.candidates), "resimulate": self.resimulate, "alpha_hat": self.alpha_hat,
                 "iterations": self.iterations, "borderline": self.borderline,
-                "borderline_decades": self.borderline_decades, "support": self.support.to_dict(), "structure": {"alpha": self.structure.alpha,
+                "borderline_decades": self.borderline_decades, "channel_holdout": self.channel_holdout,
+                "support": self.support.to_dict(), "structure": {"alpha": self.structure.alpha,
                                                              "min_rho": self.structure.min_rho,
                                                              "min_rho_white": self.structure.min_rho_white,
                                                              "min_rho_named": self.structure.min_rho_named}}

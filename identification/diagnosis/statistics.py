@@ -15,7 +15,7 @@ from scipy import stats
 
 __all__ = ["mean_square", "channel_weights", "score", "block_scores", "Chunked", "chunk_reductions", "wilcoxon_p",
            "improvement", "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome",
-           "margin_ratio", "decades_below", "in_band", "explained_share"]
+           "margin_ratio", "decades_below", "in_band", "explained_share", "channel_wilcoxon_p"]
 
 
 def clearly_nonzero(value, sigma) -> np.ndarray:
@@ -85,6 +85,18 @@ def wilcoxon_p(reductions: np.ndarray) -> float:
     if r.size < 5:
         return 1.0
     return float(stats.wilcoxon(r, alternative="greater").pvalue)
+
+
+def channel_wilcoxon_p(base: np.ndarray, cand: np.ndarray, split: Chunked) -> np.ndarray:
+    """(N + C,) per channel, the one-sided Wilcoxon p (:func:`wilcoxon_p`) that the chunks'
+    reductions of that channel's squared residual (``base`` against ``cand``, (S, N + C), slack
+    samples left out) are centred above 0.  The pooled test (:func:`chunk_reductions`) weighs every
+    channel by its share of S: an effect on one cable or joint is then diluted by the noise of the
+    N + C - 1 others, while on its own channel it stands out."""
+    d = np.nan_to_num(base) ** 2 - np.nan_to_num(cand) ** 2
+    n_chunks = int(split.chunk.max()) + 1 if split.chunk.size else 0
+    return np.array([wilcoxon_p(np.bincount(split.chunk, weights=d[:, k], minlength=n_chunks))
+                     for k in range(d.shape[1])])
 
 
 def improvement(s_ref: float, s_cand: float) -> float:
