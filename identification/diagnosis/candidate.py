@@ -204,7 +204,7 @@ def separability(ctx: StepContext, term: Term, fit: Fit) -> tuple[Separability, 
     base_names = [full.names[i] for i in ib]
     own = {col.symbol for col in term.identification.columns}
     cols, carries = {}, {}
-    for sym in own:
+    for sym in sorted(own):
         idx = [i for i, n in enumerate(full.names) if n not in base and n.split("(")[0] == sym]
         keep = clearly_nonzero(full.value[idx], full.sigma[idx]) if idx else []
         for i, k in zip(idx, keep):
