@@ -38,20 +38,26 @@ TOLERANCE = {name: 0.10 for name in NAMED}
 ABSOLUTE = {"pretension": 0.5e-3}
 
 
-@pytest.fixture(scope="module")
-def diagnosed(tmp_path_factory):
-    """(name, seed) -> (spec, diagnosis), simulated and diagnosed once when first asked."""
-    root = tmp_path_factory.mktemp("open_world")
+def _lazy_diagnoses(root, excitation=None):
+    """(name, seed) -> (spec, diagnosis), simulated into ``root`` and diagnosed once when first
+    asked; ``excitation(spec, seed)`` the generator's excitation (None: its §5.2.2 sequences)."""
     cache = {}
 
     def get(name, seed):
         if (name, seed) not in cache:
             spec = make_spec(name, seed)
-            path = simulate(root / f"{name}_{seed}.mcap", spec, seed)
+            extra = {} if excitation is None else {"excitation": excitation(spec, seed)}
+            path = simulate(root / f"{name}_{seed}.mcap", spec, seed, **extra)
             cache[name, seed] = spec, diagnose_log(path, model=spec.model, settings=FAST)
         return cache[name, seed]
 
     return get
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    """(name, seed) -> (spec, diagnosis) on the generator's sequences."""
+    return _lazy_diagnoses(tmp_path_factory.mktemp("open_world"))
 
 
 def _names(verdict) -> list:
@@ -197,18 +203,8 @@ def test_a_rest_elongation_the_log_cannot_show_gets_a_gap_line(diagnosed):
 @pytest.fixture(scope="module")
 def multisine(tmp_path_factory):
     """(name, seed) -> (spec, diagnosis) on the generator's 12.2 s random multisine in joint space."""
-    root = tmp_path_factory.mktemp("multisine")
-    cache = {}
-
-    def get(name, seed):
-        if (name, seed) not in cache:
-            spec = make_spec(name, seed)
-            path = simulate(root / f"{name}_{seed}.mcap", spec, seed,
-                            excitation=Multisine.draw(spec.params, seed, duration=12.2))
-            cache[name, seed] = spec, diagnose_log(path, model=spec.model, settings=FAST)
-        return cache[name, seed]
-
-    return get
+    return _lazy_diagnoses(tmp_path_factory.mktemp("multisine"),
+                           lambda spec, seed: Multisine.draw(spec.params, seed, duration=12.2))
 
 
 def test_a_one_cable_friction_is_held_out_on_its_own_channel(multisine):
