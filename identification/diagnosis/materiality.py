@@ -32,11 +32,11 @@ import dataclasses
 
 import numpy as np
 
-from identification.diagnosis.statistics import (Comparison, effective_samples, f_test_p, improvement, in_band,
-                                                 mean_square, wilcoxon_p)
+from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
+                                                 improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "p_times", "own_channels", "own_min_improvement", "own_comparison", "own_significant",
-           "candidate_decision"]
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "p_times", "own_channels", "own_min_improvement",
+           "own_comparison", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
@@ -81,17 +81,15 @@ def own_comparison(ctx, ref, cand, term, added: int) -> Comparison | None:
         return None
     split, data = ctx.split, ctx.data
     every = np.ones(data.S, bool)
-    d = np.nan_to_num(ref.cv[:, ch]) ** 2 - np.nan_to_num(cand.cv[:, ch]) ** 2
-    reductions = np.bincount(split.chunk, weights=d.sum(1), minlength=split.n_chunks)
+    reductions = channel_chunk_reductions(ref.cv[:, ch], cand.cv[:, ch], split).sum(1)
     n_eff = effective_samples(int(split.train.sum()), data.prep.cutoffs["common"].hz, data.prep.rate_hz) * len(ch)
     places = term.identification.places(dict(term.shape), data.n)
-    return Comparison(
+    return p_times(Comparison(
         improvement=improvement(_ms(ref.cv, every, ch), _ms(cand.cv, every, ch)),
         holdout_improvement=improvement(_ms(ref.cv, split.holdout, ch), _ms(cand.cv, split.holdout, ch)),
-        p_holdout=min(1.0, places * wilcoxon_p(reductions)),
-        p_train=min(1.0, places * f_test_p(_ms(ref.fit.residuals(), split.train, ch),
-                                           _ms(cand.fit.residuals(), split.train, ch), added,
-                                           max(n_eff - added, 1))))
+        p_holdout=wilcoxon_p(reductions),
+        p_train=f_test_p(_ms(ref.fit.residuals(), split.train, ch), _ms(cand.fit.residuals(), split.train, ch),
+                         added, max(n_eff - added, 1))), places)
 
 
 def own_significant(own: Comparison | None, whole: Comparison, alpha: float, min_improvement: float) -> bool:

@@ -15,7 +15,8 @@ from scipy import stats
 
 __all__ = ["mean_square", "channel_weights", "score", "block_scores", "Chunked", "chunk_reductions", "wilcoxon_p",
            "improvement", "f_test_p", "effective_samples", "clearly_nonzero", "Comparison", "encompassing_outcome",
-           "margin_ratio", "decades_below", "in_band", "explained_share", "channel_wilcoxon_p"]
+           "margin_ratio", "decades_below", "in_band", "explained_share", "channel_chunk_reductions",
+           "channel_wilcoxon_p"]
 
 
 def clearly_nonzero(value, sigma) -> np.ndarray:
@@ -87,16 +88,24 @@ def wilcoxon_p(reductions: np.ndarray) -> float:
     return float(stats.wilcoxon(r, alternative="greater").pvalue)
 
 
-def channel_wilcoxon_p(base: np.ndarray, cand: np.ndarray, split: Chunked) -> np.ndarray:
-    """(N + C,) per channel, the one-sided Wilcoxon p (:func:`wilcoxon_p`) that the chunks'
-    reductions of that channel's squared residual (``base`` against ``cand``, (S, N + C), slack
-    samples left out) are centred above 0.  The pooled test (:func:`chunk_reductions`) weighs every
-    channel by its share of S: an effect on one cable or joint is then diluted by the noise of the
-    N + C - 1 others, while on its own channel it stands out."""
+def channel_chunk_reductions(base: np.ndarray, cand: np.ndarray, split: Chunked) -> np.ndarray:
+    """(chunks, channels): per chunk, the reduction of each channel's squared residual, ``base``
+    against ``cand`` ((S, channels), slack samples NaN and left out), in the channel's own units
+    (unlike :func:`chunk_reductions`, not weighed into S)."""
     d = np.nan_to_num(base) ** 2 - np.nan_to_num(cand) ** 2
     n_chunks = int(split.chunk.max()) + 1 if split.chunk.size else 0
-    return np.array([wilcoxon_p(np.bincount(split.chunk, weights=d[:, k], minlength=n_chunks))
-                     for k in range(d.shape[1])])
+    return np.stack([np.bincount(split.chunk, weights=d[:, k], minlength=n_chunks) for k in range(d.shape[1])],
+                    axis=1)
+
+
+def channel_wilcoxon_p(base: np.ndarray, cand: np.ndarray, split: Chunked) -> np.ndarray:
+    """(N + C,) per channel, the one-sided Wilcoxon p (:func:`wilcoxon_p`) that the chunks'
+    reductions of that channel's squared residual (:func:`channel_chunk_reductions`) are centred
+    above 0.  The pooled test (:func:`chunk_reductions`) weighs every channel by its share of S: an
+    effect on one cable or joint is then diluted by the noise of the N + C - 1 others, while on its
+    own channel it stands out."""
+    r = channel_chunk_reductions(base, cand, split)
+    return np.array([wilcoxon_p(r[:, k]) for k in range(r.shape[1])])
 
 
 def improvement(s_ref: float, s_cand: float) -> float:
