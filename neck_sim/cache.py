@@ -20,9 +20,9 @@ import hashlib
 import os
 import pickle
 import tempfile
-from typing import Callable, Hashable, TypeVar
+from typing import Callable, Hashable, Iterable, TypeVar
 
-__all__ = ["cache_dir", "source_digest", "memo"]
+__all__ = ["cache_dir", "package_sources", "files_digest", "source_digest", "memo"]
 
 T = TypeVar("T")
 _PACKAGES = ("neck_sim", "controllers", "identification")      # pyproject's packages
@@ -53,20 +53,33 @@ def cache_dir() -> str:
     return d
 
 
-@functools.lru_cache(maxsize=1)
-def source_digest(root: str = _ROOT) -> str:
-    """sha256 (hex) of every ``.py`` file of the three packages under ``root``, names and texts:
-    any change to the code gives a new digest, so :func:`memo` never returns what older code made."""
-    h = hashlib.sha256()
+def package_sources(root: str = _ROOT) -> tuple[str, ...]:
+    """Every ``.py`` file of the three packages under ``root``, relative to it ('/'-separated),
+    sorted."""
+    out = []
     for pkg in _PACKAGES:
         for folder, dirs, files in os.walk(os.path.join(root, pkg)):
-            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-            for name in sorted(f for f in files if f.endswith(".py")):
-                path = os.path.join(folder, name)
-                h.update(os.path.relpath(path, root).replace(os.sep, "/").encode() + b"\0")
-                with open(path, "rb") as fh:
-                    h.update(fh.read() + b"\0")
+            dirs[:] = [d for d in dirs if d != "__pycache__"]
+            out += [os.path.relpath(os.path.join(folder, f), root).replace(os.sep, "/") for f in files if f.endswith(".py")]
+    return tuple(sorted(out))
+
+
+def files_digest(sources: Iterable[str], root: str = _ROOT) -> str:
+    """sha256 (hex) of the files ``sources`` (relative to ``root``), names and texts, in that order."""
+    h = hashlib.sha256()
+    for rel in sources:
+        h.update(rel.encode() + b"\0")
+        with open(os.path.join(root, rel), "rb") as fh:
+            h.update(fh.read())
+        h.update(b"\0")
     return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def source_digest(root: str = _ROOT) -> str:
+    """:func:`files_digest` of every source of the three packages (:func:`package_sources`): any
+    change to the code gives a new digest, so :func:`memo` never returns what older code made."""
+    return files_digest(package_sources(root), root)
 
 
 def memo(kind: str, key: Hashable, compute: Callable[[], T]) -> T:

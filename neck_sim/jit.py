@@ -20,7 +20,6 @@ upgrade or interpreter never meets an old entry (old folders are left for the us
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import re
 import sys
@@ -29,12 +28,11 @@ import numba
 import numpy as np
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, _CacheLocator
 
-from neck_sim.cache import cache_dir
+from neck_sim.cache import cache_dir, files_digest, package_sources
 
 __all__ = ["KERNEL_SOURCES", "kernel_sources", "kernel_cache_root", "kernel", "dual", "solve_in_place"]
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-_PACKAGES = ("neck_sim", "controllers", "identification")      # pyproject's packages
 _USES_KERNELS = re.compile(r"^\s*(?:from|import)\s+(?:neck_sim\.jit|numba)\b", re.M)
 _IMPORTS = re.compile(r"^\s*from\s+((?:neck_sim|controllers|identification)(?:\.\w+)*)\s+import\s+"
                       r"(?:\(([^)]*)\)|([^\n]*))", re.M)
@@ -57,14 +55,9 @@ def kernel_sources(root: str = _ROOT) -> tuple[str, ...]:
     segment codes, another module's kernels) into its machine code.
     """
     texts = {}
-    for pkg in _PACKAGES:
-        for folder, dirs, files in os.walk(os.path.join(root, pkg)):
-            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-            for name in sorted(files):
-                if name.endswith(".py"):
-                    path = os.path.join(folder, name)
-                    with open(path, encoding="utf-8") as fh:
-                        texts[os.path.relpath(path, root).replace(os.sep, "/")] = fh.read()
+    for rel in package_sources(root):
+        with open(os.path.join(root, rel), encoding="utf-8") as fh:
+            texts[rel] = fh.read()
     sources = {rel for rel, text in texts.items() if _USES_KERNELS.search(text)}
     for rel in list(sources):
         for module, grouped, names in _IMPORTS.findall(texts[rel]):
@@ -78,16 +71,6 @@ def kernel_sources(root: str = _ROOT) -> tuple[str, ...]:
 KERNEL_SOURCES = kernel_sources()
 
 
-def _sources_digest(sources=KERNEL_SOURCES, root: str = _ROOT) -> str:
-    h = hashlib.sha256()
-    for rel in sources:
-        h.update(rel.encode() + b"\0")
-        with open(os.path.join(root, rel), "rb") as fh:
-            h.update(fh.read())
-        h.update(b"\0")
-    return h.hexdigest()
-
-
 def _package_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
     try:
@@ -96,7 +79,7 @@ def _package_version() -> str:
         return "unknown"
 
 
-_DIGEST = _sources_digest()
+_DIGEST = files_digest(KERNEL_SOURCES, _ROOT)
 
 
 @functools.lru_cache(maxsize=1)
