@@ -26,7 +26,7 @@ import numpy as np
 
 from identification.diagnosis.result import method_text
 from identification.diagnosis.parameters import EQ50_NOTE
-from neck_sim.effects import UNEXPLAINED
+from neck_sim.effects import INSUFFICIENT_EXCITATION, UNEXPLAINED
 
 __all__ = ["write_report", "format_summary"]
 
@@ -67,8 +67,8 @@ def format_summary(diag) -> str:
                                             if margin_text(diag) else "")]
     if diag.gaps:
         lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else
-                                                       " (a gain it cannot attribute):" if diag.verdict ==
-                                                       "insufficient_excitation" else ":"))
+                                                       " (a gain it cannot attribute):"
+                                                       if diag.verdict == INSUFFICIENT_EXCITATION else ":"))
         lines += [f"      {g.describe()}" for g in diag.gaps]
     for f in diag.findings:
         ev = f.evidence
