@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+from interrupts import sigint_as_from_a_terminal
 from neck_sim.campaign import ExecutorSpec, LocalPool, WorkerDied, open_executor, run_campaign
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -104,7 +105,8 @@ _CALLER = textwrap.dedent("""
 def _start_caller(tmp_path):
     script = tmp_path / "caller.py"
     script.write_text(_CALLER.format(root=os.getcwd()))
-    proc = subprocess.Popen([sys.executable, str(script)], start_new_session=True)
+    proc = subprocess.Popen([sys.executable, str(script)], start_new_session=True,
+                            preexec_fn=sigint_as_from_a_terminal)
     deadline = time.monotonic() + 30
     # started and initialised (they ignore SIGINT): a signal at the instant of a fork is lost in
     # CPython's after-fork hooks, which is not what these tests are about

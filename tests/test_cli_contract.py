@@ -17,6 +17,7 @@ import tomllib
 
 import pytest
 
+from interrupts import sigint_as_from_a_terminal
 from neck_sim.cli import COMMANDS, DefaultsFormatter, build_parser, main
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -246,7 +247,7 @@ _CHILD = ("import sys, neck_sim.cli as cli; sys.stdout.write('ready\\n'); sys.st
 @pytest.mark.parametrize("delay", [0.0, 0.02, 0.05, 0.1, 0.2, 0.4])
 def test_early_ctrl_c_is_one_line(delay):
     proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, cwd=REPO)
+                            text=True, cwd=REPO, preexec_fn=sigint_as_from_a_terminal)
     assert proc.stdout.readline() == "ready\n"
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
