@@ -5,7 +5,10 @@ from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
 batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
 updated by Broyden's rank-one formula after every trial step (a fresh one only when the updated
-one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator
+one stops describing the residuals, :mod:`identification.output_error.solver`).  Its f_s, k and
+lambda columns come from rollouts on a cheaper model (``OutputErrorSettings.jacobian_timestep``:
+2 ms on ``discrete``, 0.42 of a plant rollout); every residual the solver compares is the
+plant's.  The integrator
 is fixed once per fit (the plant's choice for the nominal constants, :func:`choose_integrator`,
 or given): the model is continuous in every parameter.  A candidate whose re-simulation diverges
 gets NaN residuals, which the solver treats as a rejected step (its trust radius shrinks); its
