@@ -20,7 +20,9 @@ Both fit the same 16 parameters (f_s, k, lambda, c_a per cable) from the same st
 integrator.  Printed side by side: the largest relative error per group against the plant's truth,
 rollouts, CPU and wall time; then the per-rollout cost of the engine (``mujoco.batch`` threads)
 against a lockstep :class:`~neck_sim.batch.PlantBatch` and serial :meth:`Plant.step`, measured on
-the same parameter sets.
+the same parameter sets, and the cost of one rollout on the cheaper model the fit's
+Jacobian takes its f_s, k and lambda columns from (``OutputErrorSettings.jacobian_timestep``;
+its rollouts are counted among the fit's and named in the breakdown).
 
     python benchmarks/bench_output_error.py                    # the whole 85 s run (long: sysid)
     python benchmarks/bench_output_error.py --duration 10      # its first 10 s
@@ -174,6 +176,13 @@ def rollout_cost(log, truth, sets: int, threads: tuple) -> list:
         with _Clock() as c:
             engine.rollout(exp, params, integrator="implicitfast", nthread=n)
         rows.append((f"mujoco.batch threads, {n} thread{'s' if n > 1 else ''}", c.cpu / sets, c.wall / sets))
+    from identification.output_error.settings import OutputErrorSettings
+
+    s = OutputErrorSettings()
+    with _Clock() as c:
+        engine.rollout(exp, params, integrator=s.jacobian_integrator, timestep=s.jacobian_timestep, nthread=1)
+    rows.append((f"Jacobian's coarse model ({1e3 * s.jacobian_timestep:g} ms, {s.jacobian_integrator}), 1 thr.",
+                 c.cpu / sets, c.wall / sets))
     plants = [Plant(p, integrator="implicitfast") for p in params]
     with _Clock() as c:
         for p in plants:
@@ -235,14 +244,16 @@ def main(argv=None) -> int:
               + (f"  {note}" if note else ""), flush=True)
 
     row("least squares (eqs 44-57), baseline", errors(ls_values, truth), None, ls_clock)
-    oe, breakdown = {}, []
+    oe, breakdown, coarse_counts = {}, [], {}
     for threads in (2, 1) if args.one_thread else (2,):
         values, n, clock, res = output_error(log, ls, threads, args.max_evaluations)
         oe[threads] = clock
         row(f"neck-sim output-error, {threads} thread{'s' if threads > 1 else ''}", errors(values, truth), n, clock,
             "" if res.converged else "not converged")
         breakdown.append((f"output-error, {threads} thread{'s' if threads > 1 else ''}", clock.cpu, res.rollout_cpu_s,
-                          n, f"{res.trial_steps} trial steps, {res.iterations} finite-difference Jacobian(s)"))
+                          n, f"{res.trial_steps} trial steps, {res.iterations} finite-difference Jacobian(s); "
+                             f"{res.coarse_rollouts} of the rollouts on the Jacobian's coarse model"))
+        coarse_counts[threads] = res.coarse_rollouts
     summary = {"oe_wall_1_over_2_threads": oe[1].wall / oe[2].wall} if 1 in oe else {}
     cost = rollout_cost(log, truth, args.cost_sets, (1, 2))
     sys_row = None
@@ -284,6 +295,7 @@ def main(argv=None) -> int:
             "log_s": T / log.params.control.rate_hz, "summary": summary, "load_average_end": list(os.getloadavg()),
             "cpu_breakdown": [{"fit": name, "cpu_s": cpu, "rollouts_cpu_s": r, "rollouts": n}
                               for name, cpu, r, n, _ in breakdown],
+            "oe_coarse_rollouts": coarse_counts,
             "fits": [{"method": name, "max_rel_error_pct": err, "rollouts": n, "cpu_s": clock.cpu,
                       "wall_s": clock.wall, "note": note} for name, err, n, clock, note in rows],
             "per_rollout": [{"engine": name, "cpu_s": cpu, "wall_s": wall} for name, cpu, wall in cost]})

@@ -5,7 +5,10 @@ from the start point) minimises the noise-weighted residuals of
 :func:`identification.output_error.problem.residuals`.  The Jacobian is forward differences, one
 batch of p rollouts per experiment (the engine may run them in parallel), taken once and then
 updated by Broyden's rank-one formula after every trial step (a fresh one only when the updated
-one stops describing the residuals, :mod:`identification.output_error.solver`).  The integrator
+one stops describing the residuals, :mod:`identification.output_error.solver`).  Its f_s, k and
+lambda columns come from rollouts on a cheaper model (``OutputErrorSettings.jacobian_timestep``:
+2 ms on ``discrete``, 0.42 of a plant rollout); every residual the solver compares is the
+plant's.  The integrator
 is fixed once per fit (the plant's choice for the nominal constants, :func:`choose_integrator`,
 or given): the model is continuous in every parameter.  A candidate whose re-simulation diverges
 gets NaN residuals, which the solver treats as a rejected step (its trust radius shrinks); its
@@ -60,6 +63,7 @@ class OutputErrorResult:
     simulated_s: float = 0.0   # s of plant time re-simulated (rollouts x their spans)
     trial_steps: int = 0       # residual evaluations of the solver's steps (each one rollout per log)
     rollout_cpu_s: float = 0.0  # of cpu_s, the rollouts' (plants built and simulated)
+    coarse_rollouts: int = 0   # of rollouts, those on the Jacobian's cheaper model (OutputErrorSettings)
 
     @property
     def converged(self) -> bool:
@@ -83,6 +87,7 @@ class OutputErrorResult:
                 "integrator": self.integrator, "status": self.status, "converged": self.converged,
                 "logs": list(self.logs),
                 "notes": list(self.notes), "trial_steps": self.trial_steps, "rollout_cpu_s": self.rollout_cpu_s,
+                "coarse_rollouts": self.coarse_rollouts,
                 "ci95_method": "1.96 sigma, sigma from the Newey-West sandwich (J^T J)^-1 S (J^T J)^-1 at the "
                                "optimum (J of the noise-weighted residuals, Broyden-updated; S the Bartlett long-run "
                                "covariance of the per-sample scores)"}
@@ -116,9 +121,12 @@ class _Evaluator:
         self.measured, self.layout, self.integrator, self.bar = measured, layout, integrator, bar
         self.sigmas = noise_sigmas(layout.params)
         self.rollouts, self.rejected, self.simulated_s, self.cpu_s = 0, [], 0.0, 0.0
+        self.coarse_rollouts = 0
 
-    def runs(self, X) -> tuple[list, list]:
-        """Per vector of X (K, p): its runs [(theta, alpha) per experiment] or None, and reasons."""
+    def runs(self, X, coarse: tuple | None = None) -> tuple[list, list]:
+        """Per vector of X (K, p): its runs [(theta, alpha) per experiment] or None, and reasons;
+        ``coarse`` (timestep s, integrator) rolls out on that cheaper model instead of the fit's
+        (every run None when an effect keeps state outside MuJoCo's: the batch engine cannot)."""
         K = len(X)
         plants, reasons = [], [None] * K
         for k, x in enumerate(X):
@@ -127,11 +135,18 @@ class _Evaluator:
             except ValueError as exc:
                 plants.append(None)
                 reasons[k] = f"not a valid plant: {exc}"
+        m = self.layout.params.n_cables
+        if coarse is not None and (not _UNQUANTISED or any(p is not None and _outside(p[1], m) for p in plants)):
+            return [None] * K, ["the Jacobian's coarse model needs the batch engine"] * K
         ok = [k for k in range(K) if plants[k] is not None]
         runs = [[] if plants[k] is not None else None for k in range(K)]
         cpu0 = time.process_time()
         for meas in self.measured:
-            out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
+            if coarse is None:
+                out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
+            else:
+                out = _coarse_rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], *coarse)
+                self.coarse_rollouts += len(ok)
             self.rollouts += len(ok)
             self.simulated_s += len(ok) * meas.duration_s
             for i, k in enumerate(ok):
@@ -178,16 +193,30 @@ def _solve(ev: _Evaluator, layout: Layout, x0, scale, s: OutputErrorSettings):
             ev.bar.set_postfix(cost=f"{0.5 * float(r @ r):.4g}")
         return r
 
+    coarse = [i for i, name in enumerate(layout.names) if name.split("(")[0] in s.jacobian_groups] \
+        if s.jacobian_timestep is not None else []
+    model = (s.jacobian_timestep, s.jacobian_integrator or ev.integrator)
+
     def jac(x, r):
         h = s.rel_step * scale
-        runs, reasons = ev.runs(x[None, :] + np.diag(h))
         J = np.empty((r.size, x.size))
-        for i, run in enumerate(runs):
+        fine = list(range(x.size))
+        if coarse:
+            # forward differences of the cheaper model against its own rollout at x
+            runs, _ = ev.runs(np.vstack([x, x[None, :] + np.diag(h)[coarse]]), model)
+            if runs[0] is not None:
+                base = residual_of(runs[0])
+                for i, run in zip(coarse, runs[1:]):
+                    if run is not None:
+                        J[:, i] = (residual_of(run) - base) / h[i]
+                        fine.remove(i)
+        runs, reasons = ev.runs(x[None, :] + np.diag(h)[fine]) if fine else ([], [])
+        for i, run, reason in zip(fine, runs, reasons):
             if run is None:                    # the forward step diverged: step back instead
                 (back,), (why,) = ev.runs([x - np.diag(h)[i]])
                 if back is None:
                     raise ValueError(f"output-error: the plant diverges on both sides of {layout.names[i]} "
-                                     f"at {x[i]:.6g} ({reasons[i]}; {why})")
+                                     f"at {x[i]:.6g} ({reason}; {why})")
                 J[:, i] = (r - residual_of(back)) / h[i]
             else:
                 J[:, i] = (residual_of(run) - r) / h[i]
@@ -258,17 +287,30 @@ def _fit(measured, layout: Layout, x0, s: OutputErrorSettings, progress: bool, n
                              tuple(misfit_lines(ratios, [e.name for e in measured], s.misfit_ratio)),
                              tuple(ev.rejected), ev.rollouts, sol.njev, time.process_time() - cpu0,
                              integrator, sol.message, tuple(e.name for e in measured), tuple(notes),
-                             ev.simulated_s, sol.nfev, ev.cpu_s)
+                             ev.simulated_s, sol.nfev, ev.cpu_s, ev.coarse_rollouts)
+
+
+def _outside(effects, m: int) -> bool:
+    """Whether these effects keep state outside MuJoCo's (a dead band or an actuation delay),
+    which the batch engine does not step."""
+    return effects is not None and (effects.command_delay() > 0 or bool(np.any(effects.encoder_band(m) > 0)))
 
 
 def _rollout(replay, params, effects, integrator):
-    """The parallel engine when it can return unquantised motor angles and step these effects
-    (a dead band or an actuation delay keeps state outside MuJoCo's), else the serial one."""
+    """The parallel engine when it can return unquantised motor angles and step these effects,
+    else the serial one."""
     m = params[0].n_cables if params else 0
-    outside = any(e is not None and (e.command_delay() > 0 or np.any(e.encoder_band(m) > 0)) for e in effects)
-    if _UNQUANTISED and not outside:
+    if _UNQUANTISED and not any(_outside(e, m) for e in effects):
         return engine.rollout(replay, params, effects, integrator=integrator, quantise=False)
     return _serial.rollout(replay, params, effects, integrator=integrator)
+
+
+def _coarse_rollout(replay, params, effects, timestep: float, integrator: str):
+    """The batch engine on the Jacobian's cheaper model (OutputErrorSettings.jacobian_timestep)."""
+    try:
+        return engine.rollout(replay, params, effects, integrator=integrator, timestep=timestep, quantise=False)
+    except ValueError as exc:
+        raise ValueError(f"jacobian_timestep: {str(exc).splitlines()[0]}") from None
 
 
 _UNQUANTISED = "quantise" in inspect.signature(engine.rollout).parameters

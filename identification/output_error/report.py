@@ -33,7 +33,8 @@ def format_output_error(result: OutputErrorResult, reference=None, *, reference_
         lines.append(f"{n + ' (' + u + ')':24} {s0:22.6g} {f'{v:.6g} +- {c:.3g}':>28} {diff:>26}")
     lines.append("cost / noise floor per signal: " + ", ".join(f"{k} {v:.3f}" for k, v in result.cost_ratio.items())
                  + " (about 1: the residuals are the sensors' noise)")
-    lines.append(f"{result.rollouts} rollouts ({result.simulated_s:.0f} s of plant time): {result.iterations} "
+    coarse = f", {result.coarse_rollouts} of them on the Jacobian's coarse model" if result.coarse_rollouts else ""
+    lines.append(f"{result.rollouts} rollouts ({result.simulated_s:.0f} s of plant time{coarse}): {result.iterations} "
                  f"finite-difference Jacobian{'s' if result.iterations != 1 else ''}, {result.trial_steps} trial "
                  f"steps, {result.cpu_s:.1f} s CPU; stopped: {result.status}")
     if result.rejected:
