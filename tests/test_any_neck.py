@@ -341,13 +341,14 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
     0.4 / 20 = 2 % minus nothing), the F-test is that of one channel's effective samples (computed
     here from the F distribution) times 2N, and the term is named on it although the whole score's
     tests fail; a term on joint 4 sees nothing there, and one that makes the whole score worse on
-    held-out data is not named."""
+    held-out data is not named.  The channel is compared in its band (below half the common
+    cutoff, baseline and candidate low-passed alike), so the F-test counts that band's samples."""
     from types import SimpleNamespace
 
     from scipy import stats
 
     from identification.diagnosis.candidates import Term
-    from identification.diagnosis.materiality import candidate_decision, own_comparison, own_min_improvement
+    from identification.diagnosis.materiality import candidate_decision, own_band_hz, own_comparison, own_min_improvement
     from identification.diagnosis.statistics import Comparison
 
     rng = np.random.default_rng(3)
@@ -369,7 +370,7 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
     term = Term("spring_error", (("joint", 3),))
     own = own_comparison(ctx, ref, new, term, 3)
     assert own.improvement == pytest.approx(0.4) and own.holdout_improvement == pytest.approx(0.4)
-    n_eff = int(split.train.sum() * 2 * fc / rate)
+    n_eff = int(split.train.sum() * 2 * own_band_hz(fc) / rate)        # its band's effective samples
     F = (0.4 / 3) / (0.6 / (n_eff - 3))
     assert own.p_train == pytest.approx(min(1.0, 2 * n * stats.f.sf(F, 3, n_eff - 3)), rel=1e-6)
     assert own.p_holdout < alpha_c
@@ -394,3 +395,36 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
     passes, held_to, _, note = candidate_decision(ctx, strong, edge)
     assert passes and held_to.p_train == pytest.approx(0.6 * alpha_c) and not note
     assert candidate_decision(ctx, strong, None)[1] == strong
+
+
+def test_the_own_channel_is_compared_in_the_band_where_the_term_acts():
+    """Joint 2's torque residual: a 0.3 Hz wave of 0.3 N m (an effect at the motion's frequencies)
+    plus a 2.5 Hz wave of 1 N m (the camera's noise differentiated, near the 2.9 Hz common cutoff).
+    A candidate that removes the slow wave removes a^2 / (a^2 + b^2) = 8.3 % of the raw channel,
+    below the 12 % minimum; in the band below half the cutoff (1.45 Hz: a 4th-order zero-phase
+    Butterworth passes 2.5 Hz at |H|^2 = 1 / (1 + (2.5 / 1.45)^8) in amplitude) it removes nearly all
+    of it, computed here from the two sines' amplitudes."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.candidates import Term
+    from identification.diagnosis.materiality import own_band_hz, own_comparison
+
+    rate, fc, S, n, C = 31.25, 2.9, 1200, 10, 4
+    t = np.arange(S) / rate
+    fold = (np.arange(S) // 60) % 3
+    split = SimpleNamespace(chunk=np.arange(S) // 8, train=fold != 1, holdout=fold == 1)
+    data = SimpleNamespace(n=n, C=C, S=S, prep=SimpleNamespace(cutoffs={"common": SimpleNamespace(hz=fc)}, rate_hz=rate))
+    ctx = SimpleNamespace(data=data, split=split)
+    slow, fast = 0.3 * np.sin(2 * np.pi * 0.3 * t), 1.0 * np.sin(2 * np.pi * 2.5 * t)
+    base = np.zeros((S, n + C))
+    base[:, 1] = slow + fast
+    cand = base.copy()
+    cand[:, 1] = fast
+    ref = SimpleNamespace(cv=base, fit=SimpleNamespace(residuals=lambda: base))
+    new = SimpleNamespace(cv=cand, fit=SimpleNamespace(residuals=lambda: cand))
+    own = own_comparison(ctx, ref, new, Term("spring_error", (("joint", 2),)), 2)
+    gain = (1.0 / (1.0 + (2.5 / own_band_hz(fc)) ** 8)) ** 2          # two passes of |H|, in power
+    expected = 0.3 ** 2 / (0.3 ** 2 + gain * 1.0 ** 2)
+    assert 0.3 ** 2 / (0.3 ** 2 + 1.0) < 0.12 < own.improvement
+    assert own.improvement == pytest.approx(expected, abs=0.01)
+    assert own.p_holdout < 1e-6 and own.p_train < 1e-6
