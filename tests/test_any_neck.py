@@ -168,14 +168,11 @@ def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge
     column takes the joint speed from the camera when C < N (4 motor speeds do not determine 10
     joint speeds; eq 35's minimum-norm solution read 0.015 N m of the 0.036 hidden).  Its largest
     tau_j / sigma is at the hidden joint and the value within 25 % (seed 1: +15 %).  The verdict
-    itself misses it on this short log, on its own channel too: joint 5's column alone fits
-    0.046 +- 0.008 N m (width 0.2 rad/s) but predicts joint 5's torque 1 % worse over the
-    cross-validated blocks (14 % worse on the primary held-out fold), so no rule of materiality
-    names it: joint 5's torque row carries 0.12 N m RMS of residual on the clean log of this seed
-    (0.27 at joint 1, 0.009 at joint 10; at joint 5 about 0.085 N m of it is the camera's 1 deg
-    noise, measured with noise 0 and 1 on one seed), whose mean square 0.036 N m of friction is
-    about 9 % of, below the own channel's 12 %, a ratio that a longer log does not change
-    (docs/your-own-neck.md, section 7)."""
+    itself misses it on this short log: in its band (materiality.py: below half the common cutoff,
+    where the camera's differentiated noise is not) joint 5's torque residual is 39 % lower
+    cross-validated, but its F-test over the band's ~30 effective training samples gives p 0.024
+    with the factors 2N and 2 (against 7.7e-4).  On a 59.3 s log of the same seed it is named on
+    joint 5, sized -41 %."""
     spec, diag = blind10("joint_friction", SEED)
     fit = _own_candidate(diag, spec).fit
     names = list(fit.names)
