@@ -463,3 +463,21 @@ def test_the_own_channel_is_compared_in_the_band_where_the_term_acts():
     assert 0.3 ** 2 / (0.3 ** 2 + 1.0) < 0.12 < own.improvement
     assert own.improvement == pytest.approx(expected, abs=0.01)
     assert own.p_holdout < 1e-6 and own.p_train < 1e-6
+
+
+def test_a_step_of_look_alikes_is_reported_as_alternatives():
+    """A step whose verdict lists two look-alikes (neither adds to the other fitted together) is
+    reported as one or the other, the first (the leader) named as the better; a step with one
+    name, or none chosen, adds no such line."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.report import look_alike_lines
+
+    tied = SimpleNamespace(verdict=["dry_friction", "pulley_friction"], chosen=object())
+    alone = SimpleNamespace(verdict="payload", chosen=object())
+    nothing = SimpleNamespace(verdict="none", chosen=None)
+    lines = look_alike_lines(SimpleNamespace(steps=(alone, tied, nothing)))
+    assert lines == ["step 2: dry_friction or pulley_friction: fitted together neither adds to the other, so this "
+                     "log supports one of them and cannot tell which; dry_friction has the larger cross-validated "
+                     "improvement"]
+    assert look_alike_lines(SimpleNamespace(steps=(alone, nothing))) == []
