@@ -196,7 +196,8 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     """A tanh Coulomb force on cable 1's commanded force (seed 1; the baseline without eq 36's
     friction, as in the 3-joint tests): ``dry_friction`` named first, on cable 1, within 10 %
     (seed 1: -5.7 %).  ``pulley_friction`` (its tension-proportional part) also fits this short
-    log's reversals: the verdict lists both rather than pick, as the 3-joint verdicts do."""
+    log's reversals: the verdict lists both as alternatives this log cannot tell apart (the report
+    says one or the other, ``report.look_alike_lines``), as the 3-joint verdicts do."""
     spec, diag = blind10("dry_friction", SEED)
     names = list(diag.verdict) if isinstance(diag.verdict, list) else [diag.verdict]
     assert names[0] == "dry_friction", diag.verdict
