@@ -97,7 +97,8 @@ def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
                 if spec.symbol in f.parameters:
                     est = f.parameters[spec.symbol].value
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
-                  f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}", flush=True)
+                  f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}",
+                  flush=True)
 
 
 def _candidate_fit(diag, spec) -> str:

@@ -384,7 +384,8 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
     from scipy import stats
 
     from identification.diagnosis.candidates import Term
-    from identification.diagnosis.materiality import candidate_decision, own_band_hz, own_comparison, own_min_improvement
+    from identification.diagnosis.materiality import (candidate_decision, own_band_hz, own_comparison,
+                                                      own_min_improvement)
     from identification.diagnosis.statistics import Comparison
 
     rng = np.random.default_rng(3)
@@ -449,7 +450,8 @@ def test_the_own_channel_is_compared_in_the_band_where_the_term_acts():
     t = np.arange(S) / rate
     fold = (np.arange(S) // 60) % 3
     split = SimpleNamespace(chunk=np.arange(S) // 8, train=fold != 1, holdout=fold == 1)
-    data = SimpleNamespace(n=n, C=C, S=S, prep=SimpleNamespace(cutoffs={"common": SimpleNamespace(hz=fc)}, rate_hz=rate))
+    prep = SimpleNamespace(cutoffs={"common": SimpleNamespace(hz=fc)}, rate_hz=rate)
+    data = SimpleNamespace(n=n, C=C, S=S, prep=prep)
     ctx = SimpleNamespace(data=data, split=split)
     slow, fast = 0.3 * np.sin(2 * np.pi * 0.3 * t), 1.0 * np.sin(2 * np.pi * 2.5 * t)
     base = np.zeros((S, n + C))

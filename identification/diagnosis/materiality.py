@@ -8,7 +8,8 @@ one), and the 2 % minimum on S asks a one-joint effect to explain 12 % of its ch
 the former, 40 % on the latter.  This module measures such a term where it acts instead: the same
 three tests as :meth:`~identification.diagnosis.fitting.StepContext.compare` (cross-validated
 improvement, one-sided Wilcoxon over the held-out chunks, training F-test) on the joint's torque
-channel alone, with its own effective samples (one per 1 / (2 f_c) s of that channel) and the
+channel alone, with its own effective samples (one per 1 / (2 f_b) s of that channel in its band
+f_b, below) and the
 step's Bonferroni factors (the 2 N places of :func:`~identification.diagnosis.search.
 located_comparison` and the K candidates of the step).  Materiality is the 3-joint neck's: the
 channel must improve by the share of its channel that the step's minimum asks of one joint there
@@ -43,8 +44,8 @@ from identification.filtering import lowpass
 from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "p_times", "own_channels", "own_min_improvement",
-           "own_comparison", "own_significant", "candidate_decision"]
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "p_times", "own_channels",
+           "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.

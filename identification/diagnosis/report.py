@@ -67,8 +67,8 @@ def look_alike_lines(diag) -> list[str]:
     for i, st in enumerate(diag.steps):
         if st.chosen is not None and isinstance(st.verdict, list) and len(st.verdict) > 1:
             first, rest = st.verdict[0], ", ".join(st.verdict[1:])
-            out.append(f"step {i + 1}: {first} or {rest}: fitted together neither adds to the other, so this log "
-                       f"supports one of them and cannot tell which; {first} has the larger cross-validated "
+            out.append(f"step {i + 1}: {first} or {rest}: fitted together neither adds to the other, so this "
+                       f"log supports one of them and cannot tell which; {first} has the larger cross-validated "
                        "improvement")
     return out
 
