@@ -60,17 +60,10 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
 
 
 def look_alike_lines(diag) -> list[str]:
-    """One line per step whose verdict lists look-alikes (``selection.decide``: fitted together,
-    neither adds to the other): the names are alternatives this log cannot tell apart, not
-    effects found together; the first has the larger cross-validated improvement."""
-    out = []
-    for i, st in enumerate(diag.steps):
-        if st.chosen is not None and isinstance(st.verdict, list) and len(st.verdict) > 1:
-            first, rest = st.verdict[0], ", ".join(st.verdict[1:])
-            out.append(f"step {i + 1}: {first} or {rest}: fitted together neither adds to the other, so this "
-                       f"log supports one of them and cannot tell which; {first} has the larger cross-validated "
-                       "improvement")
-    return out
+    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, not effects found together."""
+    return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together neither adds to the other, so this log supports "
+            f"one of them and cannot tell which; {st.verdict[0]} has the larger cross-validated improvement"
+            for i, st in enumerate(diag.steps) if st.chosen is not None and isinstance(st.verdict, list)]
 
 
 def format_summary(diag) -> str:
@@ -78,8 +71,7 @@ def format_summary(diag) -> str:
     model = diag.baseline.description if diag.baseline is not None else diag.model.describe()
     lines = [f"diagnosis of {diag.source or 'data'} from the model: {model}",
              f"verdict: {diag.verdict}" + (f" ({'borderline' if diag.borderline else 'margins'}: {margin_text(diag)})"
-                                            if margin_text(diag) else "")]
-    lines += [f"  {line}" for line in look_alike_lines(diag)]
+                                            if margin_text(diag) else "")] + [f"  {x}" for x in look_alike_lines(diag)]
     if diag.gaps:
         lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else
                                                        " (a gain it cannot attribute):"
@@ -395,7 +387,7 @@ def _markdown(diag, figures: dict) -> str:
           + (margin_text(diag) or "-") + " (in borderline bands of "
           f"{diag.settings.borderline:g} relative / {diag.settings.borderline_decades:g} decades of p; within 1 band "
           "is borderline).", ""]
-    L += [f"* {line}" for line in look_alike_lines(diag)] + ([""] if look_alike_lines(diag) else [])
+    L += [f"* {line}\n" for line in look_alike_lines(diag)]
     if diag.gaps:
         L += ["### What this log cannot separate" + (" (no verdict)" if diag.insufficient else ""), ""]
         L += [f"* {g.describe()}" for g in diag.gaps] + [""]
