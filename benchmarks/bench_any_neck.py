@@ -97,7 +97,8 @@ def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
                 if spec.symbol in f.parameters:
                     est = f.parameters[spec.symbol].value
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
-                  f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}", flush=True)
+                  f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}",
+                  flush=True)
 
 
 def _candidate_fit(diag, spec) -> str:
@@ -124,6 +125,27 @@ def _candidate_fit(diag, spec) -> str:
         return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
                 f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")
     return ""
+
+
+def _resolved_pair(path: str, diag, spec) -> str:
+    """For a one-joint spring_error candidate on the hidden joint: the combination of its two side
+    springs that the joint's torque row resolves (``spring_error.resolved_stiffness`` at the log's
+    camera poses), fitted against hidden, and the other combination's relative sensitivity."""
+    from identification.diagnosis.columns.spring_error import resolved_stiffness
+    from neck_sim.logs import read_log
+
+    if spec.expect != "spring_error" or not diag.steps:
+        return ""
+    own = next((c for c in diag.steps[0].candidates if c.term.name == spec.expect and c.fit is not None), None)
+    joint = None if own is None else own.term.identification.joint_of(dict(own.term.shape))
+    if joint != spec.joints[0] + 1:
+        return ""
+    u, ratio = resolved_stiffness(read_log(path, topics=("camera",)).camera.alpha, spec.params, joint)
+    names = list(own.fit.names)
+    fitted = u @ [own.fit.value[names.index(f"dk({joint}{side})")] for side in "LR"]
+    hidden = u @ [spec.magnitude if spec.symbol.endswith(side + ")") else 0.0 for side in "LR"]
+    return (f"; seen by j{joint}'s row ({u[0]:+.2f} L {u[1]:+.2f} R): {fitted:.4g} of {hidden:.4g} "
+            f"({100 * (fitted / hidden - 1):+.1f} %), other side combination x{ratio:.2f}")
 
 
 def best(fn, repeat: int):

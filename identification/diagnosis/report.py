@@ -59,12 +59,19 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
               ("elongation_m", "cable elongation", 1e3, "mm"))
 
 
+def look_alike_lines(diag) -> list[str]:
+    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, not effects found together."""
+    return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together neither adds to the other, so this log supports "
+            f"one of them and cannot tell which; {st.verdict[0]} has the larger cross-validated improvement"
+            for i, st in enumerate(diag.steps) if st.chosen is not None and isinstance(st.verdict, list)]
+
+
 def format_summary(diag) -> str:
     """A few lines for the terminal: verdict, findings and their gains."""
     model = diag.baseline.description if diag.baseline is not None else diag.model.describe()
     lines = [f"diagnosis of {diag.source or 'data'} from the model: {model}",
              f"verdict: {diag.verdict}" + (f" ({'borderline' if diag.borderline else 'margins'}: {margin_text(diag)})"
-                                            if margin_text(diag) else "")]
+                                            if margin_text(diag) else "")] + [f"  {x}" for x in look_alike_lines(diag)]
     if diag.gaps:
         lines.append("  what this log cannot separate" + (" (no verdict):" if diag.insufficient else
                                                        " (a gain it cannot attribute):"
@@ -380,6 +387,7 @@ def _markdown(diag, figures: dict) -> str:
           + (margin_text(diag) or "-") + " (in borderline bands of "
           f"{diag.settings.borderline:g} relative / {diag.settings.borderline_decades:g} decades of p; within 1 band "
           "is borderline).", ""]
+    L += [f"* {line}\n" for line in look_alike_lines(diag)]
     if diag.gaps:
         L += ["### What this log cannot separate" + (" (no verdict)" if diag.insufficient else ""), ""]
         L += [f"* {g.describe()}" for g in diag.gaps] + [""]

@@ -13,7 +13,7 @@ from neck_sim.params import NeckParams
 
 from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext
 
-__all__ = ["SpringErrorColumns", "spring_torque"]
+__all__ = ["SpringErrorColumns", "spring_torque", "resolved_stiffness"]
 
 
 def spring_torque(alpha, params: NeckParams) -> np.ndarray:
@@ -27,6 +27,23 @@ def spring_torque(alpha, params: NeckParams) -> np.ndarray:
     sd = side_lengths(alpha, params)
     l0 = params.springs.rest_length
     return np.stack([(sd.l_l - l0) * sd.dl_l, (sd.l_r - l0) * sd.dl_r], axis=-1)
+
+
+def resolved_stiffness(alpha, params: NeckParams, joint: int) -> tuple[np.ndarray, float]:
+    """(u (2,), ratio): the combination u . (dk_left, dk_right) of joint ``joint``'s (1-based) two
+    side springs that its torque row resolves best at the poses alpha (S, N), and how much worse
+    the other one is resolved.
+
+    Both springs act on that row only (:func:`spring_torque`), so the fit's information on the
+    pair is the Gram matrix G of their two columns: u is its leading unit eigenvector (signed so
+    that its larger entry is positive), ``ratio`` = sqrt(lambda_min / lambda_max) the other
+    combination's sensitivity relative to u's (1: both sides resolved alike; near 0: the two
+    columns are nearly collinear and only u . dk is measured, the sides' split is not).  N/m of u
+    . dk is the stiffness change that row sees."""
+    col = spring_torque(alpha, params)[:, joint - 1, :]                        # (S, 2) N m per N/m
+    w, v = np.linalg.eigh(col.T @ col)
+    u = v[:, -1] * np.sign(v[np.argmax(np.abs(v[:, -1])), -1])
+    return u, float(np.sqrt(max(w[0], 0.0) / w[-1]))
 
 
 class SpringErrorColumns(EffectColumns):
