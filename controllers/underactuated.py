@@ -18,7 +18,7 @@ from the motor angles through the elastic cables rather than from a torque comma
       f = t_d + f_friction(theta_d') + K_p e + K_d e' + K_i int e,   e = (r_d/R)(theta_d - theta).
 
   The pose estimate (for logs and the error metrics) is the static equilibrium of the measured
-  motor angles (:func:`~neck_sim.analytic.statics.equilibrium_for_motor_angles`), refreshed every
+  motor angles (:func:`~neck_sim.analytic.statics.held_pose`), refreshed every
   ``estimate_every`` periods.
 """
 
@@ -30,10 +30,9 @@ import numpy as np
 import numpy.typing as npt
 
 from controllers.computed_torque import ControlStep
-from neck_sim.analytic.cables import cable_lengths, transmission_matrix
+from neck_sim.analytic.cables import transmission_matrix
 from neck_sim.analytic.dynamics import gravity_spring_torque, motor_friction
-from neck_sim.analytic.statics import (equilibrium_for_forces, equilibrium_for_motor_angles, motor_angles_for,
-                                       motor_stiffness)
+from neck_sim.analytic.statics import equilibrium_for_forces, held_pose, motor_angles_for, motor_stiffness
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import TrajectorySample
 
@@ -219,11 +218,10 @@ class UnderactuatedController:
         self._k = 0
 
     def _estimate(self, theta) -> None:
-        # one Newton step from the last estimate per refresh: the pose moves little in between
-        eq = equilibrium_for_motor_angles(theta, self.params, self.alpha_hat, max_iter=2)
-        self.alpha_hat = eq.alpha
-        self._lengths = cable_lengths(self.alpha_hat, self.params)
-        self._Z = transmission_matrix(self.alpha_hat, self.params)
+        # one Newton step from the last estimate per refresh: the pose moves little in between;
+        # the solver's own lengths and Z at that pose are those of cable_lengths and transmission_matrix
+        held = held_pose(theta, self.params, self.alpha_hat, max_iter=2)
+        self.alpha_hat, self._lengths, self._Z = held.equilibrium.alpha, held.lengths, held.Z
 
     def step(self, theta: npt.ArrayLike, ref: UnderactuatedReference) -> ControlStep:
         """Forces (m,) N for the next period from encoder angles ``theta`` (m,) rad."""

@@ -22,20 +22,40 @@ pytestmark = pytest.mark.slow
 WINDOW_S = 2.0
 
 
+# The tests read at most the first 4.5 s of a run (``identify --end 4.5``; the fits 2 s): the runs
+# stop at 6 s, whose first seconds are those of the whole runs bit for bit (a closed-loop run does not
+# look ahead), for a twentieth of their simulation.
+CUT_S = 6.0
+
+
+class _Prefix:
+    """The first ``duration`` seconds of trajectory ``traj``: its own samples, a shorter run."""
+
+    def __init__(self, traj, duration):
+        self._traj, self.duration = traj, min(float(duration), traj.duration)
+
+    def __getattr__(self, name):
+        return getattr(self._traj, name)
+
+
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
     """Two clean identification runs (law 1): camera-noise seeds 0 and 1, moves and holds at their
     nominal durations and 0.8 times them (law 1 does not read the camera: the second run's other
-    timing is what gives it other forces and encoder quantisation errors)."""
+    timing is what gives it other forces and encoder quantisation errors), their first ``CUT_S`` s."""
+    from controllers import selection
     from neck_sim.cli import main
 
+    whole = selection.make_run_trajectory
     d = tmp_path_factory.mktemp("oe")
     paths = []
-    for seed, scale in ((0, "1"), (1, "0.8")):
-        path = d / f"ident{seed}.mcap"
-        assert main(["simulate", "--trajectory", "identification", "--law", "1", "-o", str(path), "--no-progress",
-                     "--seed", str(seed), "--duration-scale", scale]) == 0
-        paths.append(path)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(selection, "make_run_trajectory", lambda *a, **k: _Prefix(whole(*a, **k), CUT_S))
+        for seed, scale in ((0, "1"), (1, "0.8")):
+            path = d / f"ident{seed}.mcap"
+            assert main(["simulate", "--trajectory", "identification", "--law", "1", "-o", str(path), "--no-progress",
+                         "--seed", str(seed), "--duration-scale", scale]) == 0
+            paths.append(path)
     return paths
 
 

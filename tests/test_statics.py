@@ -119,6 +119,35 @@ def test_motor_angle_equilibrium_round_trip(name, p):
         assert np.max(np.abs(_gradient(energy, eq.alpha))) < 1e-6
 
 
+def test_the_solvers_answer_is_evaluated_at_the_pose_it_returns():
+    """The solver keeps each sample's residual, stiffness and tensions (and, for held motors, the
+    cable lengths and Z) from its last accepted step instead of evaluating them again: they equal
+    those computed afresh at the returned poses (max_iter=0: no step), in a batch whose samples
+    leave the iteration at different steps (half start at their equilibrium) or never converge."""
+    from neck_sim.analytic import transmission_matrix
+    from neck_sim.analytic.statics import held_pose
+
+    p = NECKS[-1][1]
+    rng = np.random.default_rng(5)
+    forces = rng.uniform(20, 60, (12, p.n_cables))
+    eq_f = equilibrium_for_forces(forces, p, max_iter=8)
+    fresh_f = equilibrium_for_forces(forces, p, eq_f.alpha, max_iter=0)
+    for got, want in ((eq_f.residual, fresh_f.residual), (eq_f.stiffness, fresh_f.stiffness)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert 0 < eq_f.converged.sum() < 12, eq_f.converged
+    theta = motor_angles_for(eq_f.alpha, forces, p) + np.where(np.arange(12) < 6, 0.0, 0.05)[:, None]
+    for max_iter in (2, 5, 60):
+        held = held_pose(theta, p, eq_f.alpha, max_iter=max_iter)
+        eq = held.equilibrium
+        assert eq.converged.any(), max_iter
+        fresh = equilibrium_for_motor_angles(theta, p, eq.alpha, max_iter=0)
+        for got, want in ((eq.residual, fresh.residual), (eq.stiffness, fresh.stiffness),
+                          (eq.tension, fresh.tension), (held.lengths, cable_lengths(eq.alpha, p)),
+                          (held.Z, transmission_matrix(eq.alpha, p))):
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert not equilibrium_for_motor_angles(theta, p, eq_f.alpha, max_iter=2).converged.all()
+
+
 def test_stability_signs_agree_with_the_potential():
     """The sign of K's smallest eigenvalue is the sign of the independent potential's curvature
     along its eigenvector; the 10-X neck is unstable under pure force control at the straight

@@ -8,6 +8,7 @@ module with ``__all__``, listed there; a method is public when its class is.
 """
 
 import ast
+import os
 import pathlib
 import subprocess
 import sys
@@ -97,8 +98,10 @@ def unannotated(path):
 
 
 def run_mypy(files, cwd=ROOT):
-    """mypy with the project's configuration: (exit code, output)."""
-    proc = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(ROOT / "pyproject.toml"),
+    """mypy with the project's configuration: (exit code, output).  In CI (``$CI`` set: a fresh
+    clone, nothing survives the run) it writes no incremental cache, which would cost 10 % more."""
+    ci = ["--no-incremental", "--cache-dir", os.devnull] if os.environ.get("CI") else []
+    proc = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(ROOT / "pyproject.toml"), *ci,
                            *map(str, files)], cwd=cwd, capture_output=True, text=True)
     return proc.returncode, proc.stdout + proc.stderr
 

@@ -25,6 +25,7 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -151,9 +152,18 @@ def _evaluate(alpha: np.ndarray, params: NeckParams, orders) -> dict:
 
 def _lengths(alpha: np.ndarray, params: NeckParams, seg0: np.ndarray) -> np.ndarray:
     """Sum of the cables' segments minus their value at the straight pose, (..., m)."""
-    cases = _cases(params)
-    zero = _evaluate(np.zeros(params.n_joints), params, (0,))[0]
-    return _gather(seg0, cases).sum(axis=-1) - _gather(zero, cases).sum(axis=-1)
+    return _gather(seg0, _cases(params)).sum(axis=-1) - _straight_sums(*_geom(params), params.routing, params.n_joints)
+
+
+@functools.lru_cache(maxsize=256)
+def _straight_sums(b: float, L: float, r: float, routing: "Routing", n_joints: int) -> np.ndarray:
+    """Sum of each cable's segments at the straight pose, (m,) m (read-only): what every length
+    is measured from, the same for every pose of a neck, so computed once per geometry and routing."""
+    cases = routing.segment_cases(n_joints)
+    zero = _segments(np.zeros(n_joints), b, L, r, orders=(0,), left_strut=bool(np.any(cases == SEG_LEFT_STRUT)))[0]
+    out = _gather(zero, cases).sum(axis=-1)
+    out.setflags(write=False)
+    return out
 
 
 def _z(seg: np.ndarray, params: NeckParams) -> np.ndarray:

@@ -45,6 +45,7 @@ from neck_sim.params import NeckParams
 
 __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
            "force_stiffness", "motor_stiffness", "equilibrium_for_forces", "equilibrium_for_motor_angles",
+           "HeldPose", "held_pose",
            "motor_angles_for", "with_payload", "HoldingSolution", "inverse_statics", "least_tensions", "friction_band"]
 
 
@@ -193,6 +194,7 @@ def _force_terms(a, f, params):
 
 
 def _motor_terms(a, theta, params):
+    """r, K_theta, t and, for :func:`held_pose`, the cable lengths and Z at ``a`` (computed anyway)."""
     act = params.actuation
     ck = cable_kinematics(a, np.ones_like(a), params)
     x = ck.lengths + (act.r_d / act.R) * theta
@@ -200,29 +202,35 @@ def _motor_terms(a, theta, params):
     r = gravity_spring_torque(a, params) - np.einsum("...ij,...j->...i", ck.Z, t)
     K = (potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, t)
          + np.einsum("...ij,...j,...kj->...ik", ck.Z, tension_slope(x, params), ck.Z))
-    return r, K, t
+    return r, K, t, ck.lengths, ck.Z
 
 
-def _newton(terms, a0: np.ndarray, params: NeckParams, tol: float, max_iter: int, max_step: float) -> Equilibrium:
+def _newton(terms, a0: np.ndarray, params: NeckParams, tol: float, max_iter: int,
+            max_step: float) -> tuple[Equilibrium, list[np.ndarray]]:
     """Batched Levenberg-Marquardt on r(alpha) = 0 with the exact Jacobian K (the stiffness).
 
     A step -(K^T K + mu I)^-1 K^T r, at most ``max_step`` rad per joint, is kept when it lowers
     |r| and stays inside the joint range (then mu shrinks, towards Newton's step), else mu grows:
     near-singular K (soft modes of an underactuated neck) makes plain Newton cycle.  Vectorised
-    over the batch; converged samples leave the iteration.
+    over the batch; converged samples leave the iteration.  ``terms(alpha, rows)`` gives r, K, t
+    and any further per-sample arrays; every one is kept at each sample's last accepted pose, so
+    the answer needs no evaluation of its own.  Returns the equilibria and those further arrays.
     """
     n = params.n_joints
     amax = params.geometry.alpha_max
     alpha = np.array(a0, dtype=float).reshape(-1, n)
     eye = np.eye(n)
-    active = np.arange(alpha.shape[0])
-    r, K, _ = terms(alpha, active)
+    everything = np.arange(alpha.shape[0])
+    at_alpha = [np.array(x) for x in terms(alpha, everything)]     # copies: a term may be a broadcast view
+    active = everything
     mu = np.full(active.size, 1e-9)
     for _ in range(max_iter):
-        keep = (np.max(np.abs(r), -1) >= tol) & np.all(np.isfinite(r), -1) & (mu < 1e6)
-        active, r, K, mu = active[keep], r[keep], K[keep], mu[keep]
+        r_all = at_alpha[0][active]
+        keep = (np.max(np.abs(r_all), -1) >= tol) & np.all(np.isfinite(r_all), -1) & (mu < 1e6)
+        active, mu = active[keep], mu[keep]
         if active.size == 0:
             break
+        r, K = at_alpha[0][active], at_alpha[1][active]
         Kt = np.swapaxes(K, -1, -2)
         KtK = Kt @ K
         scale = np.einsum("...ii->...", KtK)[:, None, None] / n
@@ -231,17 +239,16 @@ def _newton(terms, a0: np.ndarray, params: NeckParams, tol: float, max_iter: int
         step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))
         new = alpha[active] - step
         inside = np.all(np.abs(new) < amax, -1)
-        r_new, K_new, _ = terms(np.where(inside[:, None], new, alpha[active]), active)
-        better = inside & (np.sum(r_new ** 2, -1) < np.sum(r ** 2, -1))
+        trial = terms(np.where(inside[:, None], new, alpha[active]), active)
+        better = inside & (np.sum(trial[0] ** 2, -1) < np.sum(r ** 2, -1))
         alpha[active[better]] = new[better]
-        r[better], K[better] = r_new[better], K_new[better]
+        for kept, value in zip(at_alpha, trial):
+            kept[active[better]] = value[better]
         mu = np.where(better, np.maximum(mu / 10, 1e-12), mu * 10)
-    everything = np.arange(alpha.shape[0])
-    r, K, t = terms(alpha, everything)
+    r, K, t = at_alpha[:3]
     eig = np.linalg.eigvalsh(K)
     converged = np.max(np.abs(r), -1) < tol * 10
-    return Equilibrium(alpha, t, r, K, eig, converged,
-                       converged & (eig[:, 0] > 0))
+    return Equilibrium(alpha, t, r, K, eig, converged, converged & (eig[:, 0] > 0)), at_alpha[3:]
 
 
 def _start(alpha0, shape, params):
@@ -266,7 +273,7 @@ def equilibrium_for_forces(forces: npt.ArrayLike, params: NeckParams, alpha0: np
         raise ValueError(f"forces: cables only pull, got {f.min():.3g} N")
     flat = f.reshape(-1, p.n_cables)
     a0 = _start(alpha0, f.shape[:-1], p).reshape(-1, p.n_joints)
-    eq = _newton(lambda a, idx: _force_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
+    eq = _newton(lambda a, idx: _force_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)[0]
     return Equilibrium(*(x.reshape(f.shape[:-1] + x.shape[1:]) for x in eq))
 
 
@@ -278,12 +285,34 @@ def equilibrium_for_motor_angles(theta: npt.ArrayLike, params: NeckParams, alpha
     theta = 0 is the straight pose with unstretched cables (convention of
     :mod:`neck_sim.analytic.cables`).  Stability is that of held motors (``K_theta``).
     """
+    return held_pose(theta, params, alpha0, payload_mass=payload_mass, tol=tol, max_iter=max_iter,
+                     max_step=max_step).equilibrium
+
+
+class HeldPose(NamedTuple):
+    """:func:`equilibrium_for_motor_angles` with the cables' geometry at the poses it found:
+    lengths l_c - l_c0 (..., m) m and Z (..., N, m) m (eqs 3-19, 22), those of
+    :func:`~neck_sim.analytic.cables.cable_kinematics` at ``equilibrium.alpha``."""
+
+    equilibrium: Equilibrium
+    lengths: np.ndarray
+    Z: np.ndarray
+
+
+def held_pose(theta: npt.ArrayLike, params: NeckParams, alpha0: npt.ArrayLike | None = None, *,
+              payload_mass: float | None = None,
+              tol: float = 1e-9, max_iter: int = 60, max_step: float = 0.1) -> HeldPose:
+    """:func:`equilibrium_for_motor_angles` (same arguments) and the cable lengths and Z at its
+    poses, which the solver computed there: a pose estimator reads them without evaluating the
+    cables again."""
     p = with_payload(params, payload_mass)
     th = _check_theta(theta, p)
     flat = th.reshape(-1, p.n_cables)
     a0 = _start(alpha0, th.shape[:-1], p).reshape(-1, p.n_joints)
-    eq = _newton(lambda a, idx: _motor_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
-    return Equilibrium(*(x.reshape(th.shape[:-1] + x.shape[1:]) for x in eq))
+    eq, (lengths, Z) = _newton(lambda a, idx: _motor_terms(a, flat[idx], p), a0, p, tol, max_iter, max_step)
+    batch = th.shape[:-1]
+    return HeldPose(Equilibrium(*(x.reshape(batch + x.shape[1:]) for x in eq)),
+                    lengths.reshape(batch + lengths.shape[1:]), Z.reshape(batch + Z.shape[1:]))
 
 
 class HoldingSolution(NamedTuple):
