@@ -28,6 +28,7 @@ tension acts as tau = Z t on the joints and as -t on its motor.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -239,6 +240,16 @@ class ElasticLQRController:
         self.integral = np.zeros(n)
         self.slide = None if theta0 is None else self._ratio * check_cables(theta0, m, "theta0")
         self.slide_dot = np.zeros(m)
+        self._kinematics: tuple[np.ndarray | None, Any] = (None, None)
+
+    def _kinematics_at(self, alpha: np.ndarray):
+        """Cable lengths (m), Z and dZ/dalpha (alpha_dot = 1) at the observer's pose ``alpha`` (the
+        array itself: the observer replaces it, never writes into it).  A step reports the lengths
+        and the next observer step reuses all three: one evaluation per period instead of three."""
+        if self._kinematics[0] is not alpha:
+            self._kinematics = (alpha, cable_kinematics(alpha, np.ones_like(alpha), self.params,
+                                                        allow_outside_range=True))
+        return self._kinematics[1]
 
     @property
     def alpha_hat(self) -> np.ndarray:
@@ -251,12 +262,12 @@ class ElasticLQRController:
         side in closed form (:mod:`neck_sim.analytic.statics`)."""
         p, dt = self.params, self.dt
         a, ad = self.alpha, self.alpha_dot
-        ck = cable_kinematics(a, np.ones_like(a), p, allow_outside_range=True)
+        ck = self._kinematics_at(a)
         ld = linkage_dynamics(a, ad, p, allow_outside_range=True)
         Z = ck.Z
         x = ck.lengths + s
         t = cable_tension(x, s_dot - Z.T @ ad, p)
-        Ka = force_stiffness(a, t, p) + (Z * tension_slope(x, p)) @ Z.T
+        Ka = force_stiffness(a, t, p, kinematics=ck) + (Z * tension_slope(x, p)) @ Z.T
         Ca = (Z * cable_damping(x, p)) @ Z.T
         rhs = Z @ t - ld.c - ld.g
         delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (rhs - dt * Ka @ ad))
@@ -291,5 +302,5 @@ class ElasticLQRController:
         requested = f_ff - self.K @ x
         forces = np.clip(requested, self.f_min, self.f_max)
         return ControlStep(forces, requested, requested > self.f_max, self.alpha.copy(),
-                           cable_lengths(self.alpha, p, allow_outside_range=True) + s, gamma,
+                           self._kinematics_at(self.alpha).lengths + s, gamma,
                            np.asarray(ref.alpha_ddot, dtype=float).copy())
