@@ -103,3 +103,24 @@ def test_the_command_line_runs_the_ten_joint_neck_with_the_elastic_lqr(tmp_path,
     assert "elastic LQR" in capsys.readouterr().out
     run = json.loads(js.read_text())["elastic lqr"]["metrics"]
     assert run["slack_samples"] == 0 and run["saturated_samples"] == 0 and run["tracking_error_true"] < 0.25
+
+
+def test_elastic_lqr_feedforward_computed_once_equals_the_per_period_one():
+    """The feed-forward that motor_reference computes for the whole reference gives the same
+    forces, bit for bit, as law 2's reference alone, computed period by period in step."""
+    from controllers.elastic_lqr import ElasticReference
+    from controllers.computed_torque import MotorReference
+
+    p = default_params(10)
+    traj = make_trajectory("control-test", p, SHORT)
+    once, per_period = ElasticLQRController(p), ElasticLQRController(p)
+    ref = once.motor_reference(traj.sample(np.arange(0, 600, 7) / p.control.rate_hz))
+    assert isinstance(ref, ElasticReference)
+    plain = MotorReference(*ref[:len(MotorReference._fields)])
+    rng = np.random.default_rng(3)
+    theta = np.zeros(p.n_cables)
+    for k in range(len(ref.alpha)):
+        a, b = once.step(theta, ref.at(k)), per_period.step(theta, plain.at(k))
+        for name in ("forces", "gamma", "elongation", "alpha_hat"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{name} at {k}")
+        theta = theta + rng.normal(0.0, 0.02, p.n_cables)
