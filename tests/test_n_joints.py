@@ -12,6 +12,7 @@ from controllers.elastic_lqr import ElasticLQRController, closed_loop_rates, lin
 from controllers.trajectories import FORCE_MARGIN, feedforward_forces, make_trajectory, workspace_amplitude
 from neck_sim.params import default_params
 from neck_sim.plant import Plant
+from neck_sim.trajectory import TrajectorySample
 
 SHORT = 0.3      # duration scale: 0.75 s moves, 0.3 s holds
 
@@ -124,3 +125,34 @@ def test_elastic_lqr_feedforward_computed_once_equals_the_per_period_one():
         for name in ("forces", "gamma", "elongation", "alpha_hat"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{name} at {k}")
         theta = theta + rng.normal(0.0, 0.02, p.n_cables)
+
+
+def test_elastic_lqr_reference_with_an_infeasible_sample_stops_at_that_sample(monkeypatch):
+    """Where the whole reference's feed-forward fails (a sample with no positive forces), the
+    controller keeps law 2's reference and computes the feed-forward period by period, so the run
+    still stops at the failing sample and not before its first period."""
+    import controllers.elastic_lqr as elastic
+    from controllers.computed_torque import MotorReference
+    from controllers.tension import TensionInfeasibleError
+
+    feedforward = elastic.reference_feedforward
+
+    def failing_at_sample_2(ref, params):
+        if np.asarray(ref.alpha).ndim == 1 and not np.array_equal(ref.alpha, bad):
+            return feedforward(ref, params)
+        raise TensionInfeasibleError("no positive forces at sample (2,)")
+
+    p = default_params(3)
+    ctrl = ElasticLQRController(p)
+    alpha = np.zeros((3, 3))
+    alpha[1:] = 0.1
+    alpha[2, 0] = 0.2
+    bad = alpha[2]
+    monkeypatch.setattr(elastic, "reference_feedforward", failing_at_sample_2)
+    ref = ctrl.motor_reference(TrajectorySample(alpha, np.zeros((3, 3)), np.zeros((3, 3))))
+    assert type(ref) is MotorReference
+    theta = np.zeros(p.n_cables)
+    for k in (0, 1):
+        assert np.all(ctrl.step(theta, ref.at(k)).forces > 0)
+    with pytest.raises(TensionInfeasibleError):
+        ctrl.step(theta, ref.at(2))
