@@ -28,6 +28,7 @@ tension acts as tau = Z t on the joints and as -t on its motor.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -46,7 +47,7 @@ from neck_sim.analytic.geometry import check_cables
 from neck_sim.params import NeckParams
 
 __all__ = ["LinearNeck", "linearise", "LQRWeights", "lqr_gain", "closed_loop_rates",
-           "ElasticLQRController"]
+           "ElasticReference", "ElasticLQRController"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,6 +188,28 @@ def closed_loop_rates(lin_plant: LinearNeck, K: np.ndarray, dt: float) -> np.nda
     return rates[np.argsort(-rates.real)]
 
 
+class ElasticReference(NamedTuple):
+    """Law 2's :class:`~controllers.computed_torque.MotorReference` (its seven fields first) and the
+    feed-forward every sample needs, computed once for the whole reference, batched (T, ...) or one
+    sample: gamma (..., N) N m and forces (..., N+1) N of :func:`reference_feedforward`, slide
+    (..., N+1) m the motor slides of the reference state (cables stretched by the feed-forward
+    tension)."""
+
+    alpha: np.ndarray
+    alpha_dot: np.ndarray
+    alpha_ddot: np.ndarray
+    theta_dot: np.ndarray
+    theta_ddot: np.ndarray
+    friction: np.ndarray
+    lower: np.ndarray
+    gamma: np.ndarray
+    forces: np.ndarray
+    slide: np.ndarray
+
+    def at(self, k: int) -> "ElasticReference":
+        return ElasticReference(*(x[k] for x in self))
+
+
 class ElasticLQRController:
     """Law 2's feed-forward plus LQR feedback on a neck observer (see the module docstring).
 
@@ -226,9 +249,29 @@ class ElasticLQRController:
                 f"{w.alpha_dot:g}, integral {w.integral:g} per N^2), t_min = {self.t_min:g} N, "
                 f"f_min = {self.f_min:g} N, f_max = {self.f_max:g} N")
 
-    def motor_reference(self, sample: TrajectorySample) -> MotorReference:
-        """Desired motor motion, believed friction and eq (65) bounds (law 2's), batched."""
-        return self._law2.motor_reference(sample)
+    def motor_reference(self, sample: TrajectorySample) -> ElasticReference | MotorReference:
+        """Desired motor motion, believed friction and eq (65) bounds (law 2's), batched, with the
+        feed-forward of every sample (:class:`ElasticReference`).  Law 2's reference alone where
+        some sample has no positive forces or leaves the workspace: :meth:`step` then stops there."""
+        ref = self._law2.motor_reference(sample)
+        try:
+            gamma, f_ff = reference_feedforward(ref, self.params)
+            return ElasticReference(*ref, gamma, f_ff, self._reference_slide(ref, f_ff))
+        except ValueError:          # TensionInfeasibleError, a reference pose outside the workspace
+            return ref
+
+    def _reference_slide(self, ref: MotorReference, f_ff: np.ndarray) -> np.ndarray:
+        """Motor slides (m) of the reference state: cables stretched by the feed-forward tension
+        (force minus the believed friction and the reference's motor inertia)."""
+        p = self.params
+        tension = np.maximum(f_ff - ref.friction - self.lin.m_r * self._ratio * ref.theta_ddot, 0.0)
+        # lengths pose by pose: numpy's batched evaluation can differ from one pose's in the last bit,
+        # and the loop would carry that into every later sample
+        alpha = np.asarray(ref.alpha)
+        lengths = (cable_lengths(alpha, p) if alpha.ndim == 1 else
+                   np.stack([cable_lengths(a, p) for a in alpha.reshape(-1, alpha.shape[-1])]).reshape(
+                       alpha.shape[:-1] + (p.n_cables,)))
+        return tension_elongation(tension, p) - lengths
 
     def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None:
         """Start from pose ``alpha0`` (default straight) at rest, encoders reading ``theta0`` there
@@ -239,6 +282,16 @@ class ElasticLQRController:
         self.integral = np.zeros(n)
         self.slide = None if theta0 is None else self._ratio * check_cables(theta0, m, "theta0")
         self.slide_dot = np.zeros(m)
+        self._kinematics: tuple[np.ndarray | None, Any] = (None, None)
+
+    def _kinematics_at(self, alpha: np.ndarray):
+        """Cable lengths (m), Z and dZ/dalpha (alpha_dot = 1) at the observer's pose ``alpha`` (the
+        array itself: the observer replaces it, never writes into it).  A step reports the lengths
+        and the next observer step reuses all three: one evaluation per period instead of three."""
+        if self._kinematics[0] is not alpha:
+            self._kinematics = (alpha, cable_kinematics(alpha, np.ones_like(alpha), self.params,
+                                                        allow_outside_range=True))
+        return self._kinematics[1]
 
     @property
     def alpha_hat(self) -> np.ndarray:
@@ -251,19 +304,19 @@ class ElasticLQRController:
         side in closed form (:mod:`neck_sim.analytic.statics`)."""
         p, dt = self.params, self.dt
         a, ad = self.alpha, self.alpha_dot
-        ck = cable_kinematics(a, np.ones_like(a), p, allow_outside_range=True)
+        ck = self._kinematics_at(a)
         ld = linkage_dynamics(a, ad, p, allow_outside_range=True)
         Z = ck.Z
         x = ck.lengths + s
         t = cable_tension(x, s_dot - Z.T @ ad, p)
-        Ka = force_stiffness(a, t, p) + (Z * tension_slope(x, p)) @ Z.T
+        Ka = force_stiffness(a, t, p, kinematics=ck) + (Z * tension_slope(x, p)) @ Z.T
         Ca = (Z * cable_damping(x, p)) @ Z.T
         rhs = Z @ t - ld.c - ld.g
         delta = np.linalg.solve(ld.M + dt * Ca + dt * dt * Ka, dt * (rhs - dt * Ka @ ad))
         self.alpha_dot = ad + delta
         self.alpha = a + dt * self.alpha_dot
 
-    def step(self, theta: npt.ArrayLike, ref: MotorReference) -> ControlStep:
+    def step(self, theta: npt.ArrayLike, ref: ElasticReference | MotorReference) -> ControlStep:
         """Forces for the next period from the encoder reading ``theta`` (N+1,) rad and one
         reference sample (``motor_reference(...).at(k)``).  ``gamma`` is the feed-forward torque
         of eq (66) at the reference and ``w`` the reference acceleration (no eq 59 loop)."""
@@ -279,11 +332,12 @@ class ElasticLQRController:
         a_max = p.geometry.alpha_max
         if np.any(np.abs(self.alpha) > a_max):
             raise outside_workspace(int(np.argmax(np.abs(self.alpha))), self.alpha, a_max)
-        gamma, f_ff = reference_feedforward(ref, p)
-        # the reference state: cables stretched by the feed-forward tension (force minus the believed
-        # friction and the reference's motor inertia), motors at the speeds of eq (21)
-        tension = np.maximum(f_ff - ref.friction - self.lin.m_r * self._ratio * ref.theta_ddot, 0.0)
-        s_d = tension_elongation(tension, p) - cable_lengths(ref.alpha, p)
+        if isinstance(ref, ElasticReference):
+            gamma, f_ff, s_d = ref.gamma.copy(), ref.forces, ref.slide
+        else:
+            gamma, f_ff = reference_feedforward(ref, p)
+            s_d = self._reference_slide(ref, f_ff)
+        # the reference state: s_d, motors at the speeds of eq (21)
         error = self.alpha - ref.alpha
         self.integral += error * self.dt
         x = np.concatenate([error, s - s_d, self.alpha_dot - ref.alpha_dot,
@@ -291,5 +345,5 @@ class ElasticLQRController:
         requested = f_ff - self.K @ x
         forces = np.clip(requested, self.f_min, self.f_max)
         return ControlStep(forces, requested, requested > self.f_max, self.alpha.copy(),
-                           cable_lengths(self.alpha, p, allow_outside_range=True) + s, gamma,
+                           self._kinematics_at(self.alpha).lengths + s, gamma,
                            np.asarray(ref.alpha_ddot, dtype=float).copy())

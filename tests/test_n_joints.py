@@ -12,6 +12,7 @@ from controllers.elastic_lqr import ElasticLQRController, closed_loop_rates, lin
 from controllers.trajectories import FORCE_MARGIN, feedforward_forces, make_trajectory, workspace_amplitude
 from neck_sim.params import default_params
 from neck_sim.plant import Plant
+from neck_sim.trajectory import TrajectorySample
 
 SHORT = 0.3      # duration scale: 0.75 s moves, 0.3 s holds
 
@@ -103,3 +104,55 @@ def test_the_command_line_runs_the_ten_joint_neck_with_the_elastic_lqr(tmp_path,
     assert "elastic LQR" in capsys.readouterr().out
     run = json.loads(js.read_text())["elastic lqr"]["metrics"]
     assert run["slack_samples"] == 0 and run["saturated_samples"] == 0 and run["tracking_error_true"] < 0.25
+
+
+def test_elastic_lqr_feedforward_computed_once_equals_the_per_period_one():
+    """The feed-forward that motor_reference computes for the whole reference gives the same
+    forces, bit for bit, as law 2's reference alone, computed period by period in step."""
+    from controllers.elastic_lqr import ElasticReference
+    from controllers.computed_torque import MotorReference
+
+    p = default_params(10)
+    traj = make_trajectory("control-test", p, SHORT)
+    once, per_period = ElasticLQRController(p), ElasticLQRController(p)
+    ref = once.motor_reference(traj.sample(np.arange(0, 600, 7) / p.control.rate_hz))
+    assert isinstance(ref, ElasticReference)
+    plain = MotorReference(*ref[:len(MotorReference._fields)])
+    rng = np.random.default_rng(3)
+    theta = np.zeros(p.n_cables)
+    for k in range(len(ref.alpha)):
+        a, b = once.step(theta, ref.at(k)), per_period.step(theta, plain.at(k))
+        for name in ("forces", "gamma", "elongation", "alpha_hat"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{name} at {k}")
+        theta = theta + rng.normal(0.0, 0.02, p.n_cables)
+
+
+def test_elastic_lqr_reference_with_an_infeasible_sample_stops_at_that_sample(monkeypatch):
+    """Where the whole reference's feed-forward fails (a sample with no positive forces), the
+    controller keeps law 2's reference and computes the feed-forward period by period, so the run
+    still stops at the failing sample and not before its first period."""
+    import controllers.elastic_lqr as elastic
+    from controllers.computed_torque import MotorReference
+    from controllers.tension import TensionInfeasibleError
+
+    feedforward = elastic.reference_feedforward
+
+    def failing_at_sample_2(ref, params):
+        if np.asarray(ref.alpha).ndim == 1 and not np.array_equal(ref.alpha, bad):
+            return feedforward(ref, params)
+        raise TensionInfeasibleError("no positive forces at sample (2,)")
+
+    p = default_params(3)
+    ctrl = ElasticLQRController(p)
+    alpha = np.zeros((3, 3))
+    alpha[1:] = 0.1
+    alpha[2, 0] = 0.2
+    bad = alpha[2]
+    monkeypatch.setattr(elastic, "reference_feedforward", failing_at_sample_2)
+    ref = ctrl.motor_reference(TrajectorySample(alpha, np.zeros((3, 3)), np.zeros((3, 3))))
+    assert type(ref) is MotorReference
+    theta = np.zeros(p.n_cables)
+    for k in (0, 1):
+        assert np.all(ctrl.step(theta, ref.at(k)).forces > 0)
+    with pytest.raises(TensionInfeasibleError):
+        ctrl.step(theta, ref.at(2))

@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.cables import cable_kinematics, cable_lengths
+from neck_sim.analytic.cables import CableKinematics, cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, gravity_spring_torque, static_elongation
 from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables, side_lengths
 from neck_sim.params import NeckParams
@@ -169,11 +169,15 @@ def _cable_curvature_term(Zp: np.ndarray, t: np.ndarray) -> np.ndarray:
     return d[..., :, None] * np.eye(d.shape[-1])
 
 
-def force_stiffness(alpha: npt.ArrayLike, forces: npt.ArrayLike, params: NeckParams) -> np.ndarray:
-    """K_f: Hessian of V + f . l_c (cables as ideal force sources), (..., N, N) N m/rad."""
+def force_stiffness(alpha: npt.ArrayLike, forces: npt.ArrayLike, params: NeckParams, *,
+                    kinematics: CableKinematics | None = None) -> np.ndarray:
+    """K_f: Hessian of V + f . l_c (cables as ideal force sources), (..., N, N) N m/rad.
+
+    ``kinematics``: :func:`cable_kinematics` at ``alpha`` with alpha_dot = 1 (rad/s), when the
+    caller has it already (its Zdot is then dZ/dalpha); computed here otherwise."""
     a = check_alpha(alpha, params.n_joints)
     f = check_cables(forces, params.n_cables, "forces")
-    ck = cable_kinematics(a, np.ones_like(a), params)
+    ck = cable_kinematics(a, np.ones_like(a), params) if kinematics is None else kinematics
     return potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, f)
 
 
