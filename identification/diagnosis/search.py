@@ -117,17 +117,18 @@ def located_train_p(ctx: StepContext, entry, bound: bool = True) -> float:
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
     p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
                  max(ctx.n_eff - fit.n_params - added, 1))
-    p *= term.identification.places(dict(term.shape), ctx.data.n)
+    p *= term.identification.places(dict(term.shape), ctx.data.n, ctx.data.C)
     return min(1.0, p) if bound else p
 
 
-def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Comparison:
+def located_comparison(comparison: Comparison, term: Term, n_joints: int, n_cables: int) -> Comparison:
     """``comparison`` of a term against the step's baseline with both p values multiplied by the
     tests the term stands for (``EffectColumns.places``: Bonferroni over the two forms of an effect
-    searched joint by joint and the N joints of its one-joint form; unchanged for other terms):
+    searched joint by joint and the N joints of its one-joint form, the same over cables for a
+    motor-side term on one cable; unchanged for other terms):
     the best of N joints would pass a test at alpha about N times as often as one joint named in
     advance."""
-    places = term.identification.places(dict(term.shape), n_joints)
+    places = term.identification.places(dict(term.shape), n_joints, n_cables)
     return comparison if places == 1 else p_times(comparison, places)
 
 
