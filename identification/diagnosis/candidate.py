@@ -151,11 +151,19 @@ class CandidateScore:
         return bool(abs(self.margin) < 1.0)
 
 
-def sign_ok(fit: Fit, term: Term) -> tuple[bool, str]:
+def sign_ok(fit: Fit, term: Term, n_cables: int) -> tuple[bool, str]:
     """False when a clearly non-zero magnitude of ``term`` has the unphysical sign (the effect's
-    ``sign_violation``): the candidate then only reshapes another effect."""
-    symbols = [col.symbol for col in term.identification.columns if fit.has(col.symbol)]
-    why = term.identification.sign_violation({s: fit.group(s) for s in symbols}, {s: fit.group_sigma(s) for s in symbols})
+    ``sign_violation``): the candidate then only reshapes another effect.  A term on one cable is
+    read with zeros on the others (the message names its cable)."""
+    eff = term.identification
+    cols = [col for col in eff.columns if fit.has(col.symbol)]
+    cable = eff.cable_of(dict(term.shape))
+
+    def every(col, v):
+        return col.expand(v, 0, None, n_cables, cable)
+
+    why = eff.sign_violation({c.symbol: every(c, fit.group(c.symbol)) for c in cols},
+                             {c.symbol: every(c, fit.group_sigma(c.symbol)) for c in cols})
     why = why or term.identification.shape_violation(dict(term.shape))
     return not why, why
 
@@ -348,7 +356,7 @@ def _scored(ctx: StepContext, best) -> CandidateScore:
     bb = block_scores(ctx.base.cv, every, ctx.scales, ctx.data.n)
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)
     ratio = {k: (bc[k] / bb[k] if bb[k] > 0 else 1.0) for k in bb}
-    valid, why = sign_ok(fit, term)
+    valid, why = sign_ok(fit, term, ctx.data.C)
     why = "; ".join(x for x in (why, own_note, channel_note) if x)
     s = ctx.settings
     sep = separability(ctx, term, fit)
