@@ -179,8 +179,9 @@ def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
     elongation x_0, a dead band) whose elongation offset (``fit_cable_offset``) best fits that
     cable's law (bounded search on ``shape.bounds`` on the training folds);
     the term keeps the cables whose offset passes an F-test at 1 % on that cable's rows, else the
-    best single cable; with ``shape.every_cable`` also every cable at its value, the form with the
-    smaller training F-test p kept (a play on every motor passes on no cable's law alone at 1 %)."""
+    best single cable; with ``shape.every_cable``, when that term passes its training F-test, also
+    every cable at its value, the form with the smaller training F-test p kept (a play on every
+    motor passes on no cable's law alone at 1 %)."""
     data = ctx.data
     offset = effect_columns.get(name).fit_cable_offset      # the trial offset of a shape value
     found = []
@@ -192,11 +193,14 @@ def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
         found.append((f_test_p(s0, s1, 1, n - 4), s1 / s0, j, round(x, 7)))
     keep = [(j, x) for p, _, j, x in found if p < 0.01] or [min(found, key=lambda e: e[1])[2:]]
     entry = trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for j, x in sorted(keep))))
-    if shape.every_cable and len(keep) < data.C:
-        # every cable at its value: nested forms, so by the training F-test (its shape keys counted)
+    if shape.every_cable and len(keep) < data.C and entry is not None \
+            and located_train_p(ctx, entry) < ctx.alpha_candidate:
+        # every cable at its value, tried only once the kept cables pass their training F-test
+        # (which bounds the false-alarm level whatever form is scored); nested forms, so kept by
+        # that test's p (its shape keys counted), not by the training score
         every = trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for _, _, j, x in found)))
-        done = [e for e in (entry, every) if e is not None]
-        entry = min(done, key=lambda e: located_train_p(ctx, e, bound=False)) if done else None
+        if every is not None and located_train_p(ctx, every, bound=False) < located_train_p(ctx, entry, bound=False):
+            entry = every
     return entry
 
 

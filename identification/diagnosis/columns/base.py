@@ -159,8 +159,9 @@ class Shape:
     ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable: ``search`` = ``"cable_law"``
     on that cable's law alone (an elongation offset), ``"fit"`` by whole fits with the shape on
     one cable at a time, on ``grid`` then refined between neighbours (a delay on one motor).
-    ``every_cable`` (with ``search="cable_law"``): the term with every cable at its searched value
-    is tried as well (a gear play on every motor), the form with the smaller training F-test p kept.
+    ``every_cable`` (with ``search="cable_law"``): once the kept cables' term passes its training
+    F-test, the term with every cable at its searched value is tried as well (a gear play on every
+    motor), the form with the smaller training F-test p kept.
     """
 
     name: str
@@ -271,8 +272,9 @@ class EffectColumns:
         Bonferroni).  An effect with :attr:`locates_joint` is tried in two forms, each at half the
         candidate's level: every joint at once (2), then, when that form's training F-test does not
         pass, each of the N joints alone (2 N); one with :attr:`locates_cable` the same over its
-        cables (2, then 2 C for a term on one cable, which needs ``n_cables``); one whose per-cable
-        shape is also tried on every cable (``Shape.every_cable``) 2; 1 for every other effect."""
+        cables (2, then 2 C for a term on one cable, which needs ``n_cables``); 1 for every other
+        effect (a per-cable shape tried on every cable too, ``Shape.every_cable``, only once the
+        kept cables pass their training F-test: that test bounds its level)."""
         if cls.locates_joint:
             return 2 * n_joints if cls.joint_of(shape) is not None else 2
         if cls.locates_cable:
@@ -281,7 +283,7 @@ class EffectColumns:
             if n_cables is None:
                 raise ValueError(f"{cls.effect}: the places of a term on one cable need the number of cables")
             return 2 * n_cables
-        return 2 if any(sh.every_cable for sh in cls.shapes) else 1
+        return 1
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
