@@ -339,7 +339,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
             if not cols:
                 continue                                                        # acts on the observations
             if design.motor is not None:
-                motor_fast.append((len(names), *design.motor))
+                motor_fast.append((len(names), len(cols), *design.motor))
             designs.append(design)
             names += cols
             units += [u for _, u in named]
@@ -366,9 +366,9 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
         # tension estimate for the next pass: y_C minus the fitted motor forces (the filter chain
         # is linear, so the slow-grid tension is the same combination of the slow columns)
         t_fast, t_slow = y_fast.copy(), y_slow.copy()
-        for start, fast, slow in motor_fast:
-            t_fast = t_fast - fast * value[start:start + C]
-            t_slow = t_slow - slow * value[start:start + C]
+        for start, width, fast, slow in motor_fast:        # width: C, or 1 for a term on one cable
+            t_fast = t_fast - fast * value[start:start + width]
+            t_slow = t_slow - slow * value[start:start + width]
         if elastic:
             k_hat = np.maximum(_pick(names, value, "k", C), 1.0)
             lam_hat = np.maximum(_pick(names, value, "lambda", C, 0.0), 0.0)
@@ -413,8 +413,11 @@ def plant_model(fit: Fit, nominal: NeckParams) -> tuple[NeckParams, Effects, boo
         if term is None:
             params = cls.when_absent(params, m.elastic)
             continue
-        values = {col.symbol: fit.group(col.symbol) for col in cls.columns}
-        params, effect = cls.to_plant(params, values, dict(term.shape))
+        shape = dict(term.shape)
+        cable = cls.cable_of(shape)         # a term on one cable: its value there, zero elsewhere
+        values = {col.symbol: col.expand(fit.group(col.symbol), nominal.n_joints, None, nominal.n_cables, cable)
+                  for col in cls.columns}
+        params, effect = cls.to_plant(params, values, cls.without_location(shape))
         if effect is not None:
             extra.append(effect)
     return params, Effects.of(*extra), not m.elastic

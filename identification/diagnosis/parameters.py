@@ -42,6 +42,9 @@ def _located(fit: Fit, term: Term, per: str) -> list[int] | None:
     joint = term.identification.joint_of(dict(term.shape))
     if joint is not None:               # a located term: the joint its search chose
         return [joint] if per == "joint" else None
+    cable = term.identification.cable_of(dict(term.shape))
+    if cable is not None:               # the cable its search chose
+        return [cable] if per == "cable" else None
     # per-spring magnitudes (2 per joint: left, right) locate joints
     items_per = {per: 1, "spring": 2} if per == "joint" else {per: 1}
     if not cols or cols[0].per not in items_per or not fit.has(cols[0].symbol):

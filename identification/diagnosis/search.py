@@ -117,17 +117,18 @@ def located_train_p(ctx: StepContext, entry, bound: bool = True) -> float:
     added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
     p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
                  max(ctx.n_eff - fit.n_params - added, 1))
-    p *= term.identification.places(dict(term.shape), ctx.data.n)
+    p *= term.identification.places(dict(term.shape), ctx.data.n, ctx.data.C)
     return min(1.0, p) if bound else p
 
 
-def located_comparison(comparison: Comparison, term: Term, n_joints: int) -> Comparison:
+def located_comparison(comparison: Comparison, term: Term, n_joints: int, n_cables: int) -> Comparison:
     """``comparison`` of a term against the step's baseline with both p values multiplied by the
     tests the term stands for (``EffectColumns.places``: Bonferroni over the two forms of an effect
-    searched joint by joint and the N joints of its one-joint form; unchanged for other terms):
+    searched joint by joint and the N joints of its one-joint form, the same over cables for a
+    motor-side term on one cable; unchanged for other terms):
     the best of N joints would pass a test at alpha about N times as often as one joint named in
     advance."""
-    places = term.identification.places(dict(term.shape), n_joints)
+    places = term.identification.places(dict(term.shape), n_joints, n_cables)
     return comparison if places == 1 else p_times(comparison, places)
 
 
@@ -178,7 +179,9 @@ def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
     elongation x_0, a dead band) whose elongation offset (``fit_cable_offset``) best fits that
     cable's law (bounded search on ``shape.bounds`` on the training folds);
     the term keeps the cables whose offset passes an F-test at 1 % on that cable's rows, else the
-    best single cable."""
+    best single cable; with ``shape.every_cable``, when that term passes its training F-test, also
+    every cable at its value, the form with the smaller training F-test p kept (a play on every
+    motor passes on no cable's law alone at 1 %)."""
     data = ctx.data
     offset = effect_columns.get(name).fit_cable_offset      # the trial offset of a shape value
     found = []
@@ -189,7 +192,16 @@ def search_per_cable_offset(ctx: StepContext, trial, name: str, shape: Shape):
                                   data.prep.rate_hz), 5)
         found.append((f_test_p(s0, s1, 1, n - 4), s1 / s0, j, round(x, 7)))
     keep = [(j, x) for p, _, j, x in found if p < 0.01] or [min(found, key=lambda e: e[1])[2:]]
-    return trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for j, x in sorted(keep))))
+    entry = trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for j, x in sorted(keep))))
+    if shape.every_cable and len(keep) < data.C and entry is not None \
+            and located_train_p(ctx, entry) < ctx.alpha_candidate:
+        # every cable at its value, tried only once the kept cables pass their training F-test
+        # (which bounds the false-alarm level whatever form is scored); nested forms, so kept by
+        # that test's p (its shape keys counted), not by the training score
+        every = trial(Term(name, tuple((f"{shape.name}_{j + 1}", x) for _, _, j, x in found)))
+        if every is not None and located_train_p(ctx, every, bound=False) < located_train_p(ctx, entry, bound=False):
+            entry = every
+    return entry
 
 
 def retune_shapes(data: MeasuredData, model: ModelSpec, split: Split, settings: DiagnosisSettings,

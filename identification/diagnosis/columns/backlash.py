@@ -41,7 +41,9 @@ class BacklashColumns(EffectColumns):
     drum's acceleration and speed (:meth:`fit_force_offset`)."""
 
     effect: ClassVar[str] = Backlash.name
-    shapes: ClassVar[tuple] = (Shape("band", "m", per_cable=True, bounds=BACKLASH_RANGE, profile_step=2e-5),)
+    # a play in one gear model may sit on every motor: every cable's band is tried too
+    shapes: ClassVar[tuple] = (Shape("band", "m", per_cable=True, bounds=BACKLASH_RANGE, profile_step=2e-5,
+                                     every_cable=True),)
 
     @classmethod
     def bands(cls, shape: dict, n_cables: int) -> np.ndarray:

@@ -110,9 +110,10 @@ class Column:
         if self.per not in ("cable", "joint", "spring", "one"):
             raise ValueError(f"Column.per: 'cable', 'joint', 'spring' or 'one', got {self.per!r}")
 
-    def names(self, n_joints: int, n_cables: int, joint: int | None = None) -> tuple[str, ...]:
+    def names(self, n_joints: int, n_cables: int, joint: int | None = None,
+              cable: int | None = None) -> tuple[str, ...]:
         """Column names for a neck of N = ``n_joints`` joints and m = ``n_cables`` cables; with
-        ``joint`` (1-based) those of that joint only (:meth:`select`)."""
+        ``joint`` (or ``cable``, 1-based) those of that joint (cable) only (:meth:`select`)."""
         if self.per == "one":
             return (self.symbol,)
         if self.per == "spring":
@@ -120,23 +121,29 @@ class Column:
         else:
             count = {"cable": n_cables, "joint": n_joints}[self.per]
             out = tuple(f"{self.symbol}({i + 1})" for i in range(count))
-        return out[self.select(joint)]
+        return out[self.select(joint, cable)]
 
-    def select(self, joint: int | None) -> slice:
+    def select(self, joint: int | None, cable: int | None = None) -> slice:
         """The columns of 1-based ``joint`` among this group's (one per joint, two per joint's
-        side springs); every column when ``joint`` is None or the group is not per joint."""
+        side springs), or of 1-based ``cable`` in a group per cable; every column when neither
+        applies to the group."""
+        if cable is not None and self.per == "cable":
+            return slice(cable - 1, cable)
         if joint is None or self.per not in ("joint", "spring"):
             return slice(None)
         width = 2 if self.per == "spring" else 1
         return slice(width * (joint - 1), width * joint)
 
-    def expand(self, values, n_joints: int, joint: int | None) -> np.ndarray:
-        """The group's values on every joint (zeros off ``joint``) from those of :meth:`select`."""
+    def expand(self, values, n_joints: int, joint: int | None, n_cables: int = 0,
+               cable: int | None = None) -> np.ndarray:
+        """The group's values on every joint or cable (zeros off ``joint`` or ``cable``) from
+        those of :meth:`select`."""
         v = np.asarray(values, dtype=float)
-        if joint is None or self.per not in ("joint", "spring"):
+        located = (cable is not None and self.per == "cable") or (joint is not None and self.per in ("joint", "spring"))
+        if not located:
             return v
-        out = np.zeros(len(self.names(n_joints, 0)))
-        out[self.select(joint)] = v
+        out = np.zeros(len(self.names(n_joints, n_cables)))
+        out[self.select(joint, cable)] = v
         return out
 
 
@@ -152,6 +159,9 @@ class Shape:
     ``<name>_<i>`` (1-based), searched on ``bounds`` cable by cable: ``search`` = ``"cable_law"``
     on that cable's law alone (an elongation offset), ``"fit"`` by whole fits with the shape on
     one cable at a time, on ``grid`` then refined between neighbours (a delay on one motor).
+    ``every_cable`` (with ``search="cable_law"``): once the kept cables' term passes its training
+    F-test, the term with every cable at its searched value is tried as well (a gear play on every
+    motor), the form with the smaller training F-test p kept.
     """
 
     name: str
@@ -164,6 +174,7 @@ class Shape:
     per_cable: bool = False
     bounds: tuple | None = None
     search: str = "cable_law"
+    every_cable: bool = False
 
     def __post_init__(self):
         if self.refine not in (None, "log", "linear"):
@@ -215,6 +226,9 @@ class EffectColumns:
     # a term may carry the shape key ``joint`` (1-based): its per-joint and per-spring columns on
     # that joint only (one joint's spring error, one hinge's friction), searched joint by joint
     locates_joint: ClassVar[bool] = False
+    # a motor-side term may carry the shape key ``cable`` (1-based): its per-cable columns on that
+    # cable only (a friction on one motor), tried when the every-cable form fails its tests
+    locates_cable: ClassVar[bool] = False
 
     @classmethod
     def effect_class(cls) -> type[Effect]:
@@ -234,21 +248,42 @@ class EffectColumns:
         return None if v is None else int(v)
 
     @classmethod
-    def column_names(cls, n_joints: int, n_cables: int, shape: dict) -> tuple[tuple[str, str], ...]:
-        """(name, unit) of each regressor column of a term with ``shape`` (a located term: its
-        joint's only), in :meth:`design`'s order."""
-        joint = cls.joint_of(shape)
-        return tuple((nm, col.unit) for col in cls.columns for nm in col.names(n_joints, n_cables, joint))
+    def cable_of(cls, shape: dict) -> int | None:
+        """The 1-based cable a located motor-side term acts on (shape key ``cable`` of an effect
+        with :attr:`locates_cable`); None: every cable."""
+        v = shape.get("cable") if cls.locates_cable else None
+        return None if v is None else int(v)
 
     @classmethod
-    def places(cls, shape: dict, n_joints: int) -> int:
+    def without_location(cls, shape: dict) -> dict:
+        """``shape`` less its location key (``cable``): the effect's own shape parameters."""
+        return {k: v for k, v in shape.items() if not (k == "cable" and cls.locates_cable)}
+
+    @classmethod
+    def column_names(cls, n_joints: int, n_cables: int, shape: dict) -> tuple[tuple[str, str], ...]:
+        """(name, unit) of each regressor column of a term with ``shape`` (a located term: its
+        joint's or cable's only), in :meth:`design`'s order."""
+        joint, cable = cls.joint_of(shape), cls.cable_of(shape)
+        return tuple((nm, col.unit) for col in cls.columns for nm in col.names(n_joints, n_cables, joint, cable))
+
+    @classmethod
+    def places(cls, shape: dict, n_joints: int, n_cables: int | None = None) -> int:
         """The number of tests a term with ``shape`` stands for (its p values are multiplied by it:
         Bonferroni).  An effect with :attr:`locates_joint` is tried in two forms, each at half the
         candidate's level: every joint at once (2), then, when that form's training F-test does not
-        pass, each of the N joints alone (2 N); 1 for every other effect."""
-        if not cls.locates_joint:
-            return 1
-        return 2 * n_joints if cls.joint_of(shape) is not None else 2
+        pass, each of the N joints alone (2 N); one with :attr:`locates_cable` the same over its
+        cables (2, then 2 C for a term on one cable, which needs ``n_cables``); 1 for every other
+        effect (a per-cable shape tried on every cable too, ``Shape.every_cable``, only once the
+        kept cables pass their training F-test: that test bounds its level)."""
+        if cls.locates_joint:
+            return 2 * n_joints if cls.joint_of(shape) is not None else 2
+        if cls.locates_cable:
+            if cls.cable_of(shape) is None:
+                return 2
+            if n_cables is None:
+                raise ValueError(f"{cls.effect}: the places of a term on one cable need the number of cables")
+            return 2 * n_cables
+        return 1
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
@@ -342,6 +377,7 @@ class MotorColumns(EffectColumns):
         one), through the observations' filter chain (parallel filtering: both sides of every
         equation see the same filter)."""
         effect = cls.effect_class()
+        shape = cls.without_location(shape)
 
         def compute():
             t = None
@@ -360,7 +396,13 @@ class MotorColumns(EffectColumns):
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
         fast, slow = cls.basis(data, shape, context.tension_fast if cls.uses_tension else None)
         C = data.C
-        return Design(data.Z * slow[:, None, :], slow[:, :, None] * np.eye(C), (fast, slow))
+        cable = cls.cable_of(shape)
+        if cable is None:
+            return Design(data.Z * slow[:, None, :], slow[:, :, None] * np.eye(C), (fast, slow))
+        # one cable's column; the motor forces zero on the others (the fit scales them by its value)
+        on = np.eye(C)[cable - 1]
+        return Design(data.Z[:, :, cable - 1:cable] * slow[:, None, cable - 1:cable],
+                      (slow * on)[:, :, None], (fast * on, slow * on))
 
     @classmethod
     def to_plant(cls, params: NeckParams, values: dict, shape: dict) -> tuple[NeckParams, Effect | None]:

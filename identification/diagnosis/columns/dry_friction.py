@@ -19,6 +19,7 @@ class DryFrictionColumns(MotorColumns):
     a log-refined shape.  A model without it has no friction at all (``when_absent``)."""
 
     effect: ClassVar[str] = DryFriction.name
+    locates_cable: ClassVar[bool] = True
     columns: ClassVar[tuple] = (Column("f_s", "N"),)
     shapes: ClassVar[tuple] = (Shape("c_s", "s/rad", default=0.5, grid=(0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
                                      refine="log", span=2.0),)

@@ -16,6 +16,7 @@ class StribeckFrictionColumns(MotorColumns):
     tanh(theta_dot/smoothing); ``smoothing`` and ``speed`` (rad/s) tried on their grids."""
 
     effect: ClassVar[str] = StribeckFriction.name
+    locates_cable: ClassVar[bool] = True
     columns: ClassVar[tuple] = (Column("df", "N"),)
     shapes: ClassVar[tuple] = (Shape("smoothing", "rad/s", default=0.5, grid=(0.15, 0.5, 1.5)),
                                Shape("speed", "rad/s", default=5.0, grid=(1.5, 3.0, 6.0, 12.0)))

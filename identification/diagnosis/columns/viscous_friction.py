@@ -25,6 +25,7 @@ class ViscousFrictionColumns(MotorColumns):
     """c_v (N s/rad) per cable: the torque and cable blocks of f = c_v theta_dot."""
 
     effect: ClassVar[str] = ViscousFriction.name
+    locates_cable: ClassVar[bool] = True
     columns: ClassVar[tuple] = (Column("c_v", "N s/rad"),)
 
     @classmethod
