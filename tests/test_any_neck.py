@@ -335,13 +335,13 @@ def test_a_located_term_has_its_joints_columns_and_its_p_values_count_the_joints
         spread = np.asarray(effect.dk if name == "spring_error" else effect.torque)
         assert np.count_nonzero(spread) == len(own) and list(spread[at]) == list(values)
     cmp = Comparison(0.05, 0.05, 1e-4, 2e-3)
-    located = located_comparison(cmp, Term("spring_error", (("joint", 3),)), n)
+    located = located_comparison(cmp, Term("spring_error", (("joint", 3),)), n, C)
     assert (located.p_holdout, located.p_train) == pytest.approx((2 * n * 1e-4, 2 * n * 2e-3))
-    every = located_comparison(cmp, Term("spring_error", ()), n)
+    every = located_comparison(cmp, Term("spring_error", ()), n, C)
     assert (every.p_holdout, every.p_train) == pytest.approx((2e-4, 4e-3))
-    assert located_comparison(cmp, Term("payload", ()), n) == cmp
+    assert located_comparison(cmp, Term("payload", ()), n, C) == cmp
     assert located_comparison(Comparison(0.05, 0.05, 0.3, 0.5), Term("joint_friction", (("joint", 1), ("width", 0.05))),
-                              n).p_train == 1.0
+                              n, C).p_train == 1.0
 
 
 def test_a_hidden_payload_on_the_ten_joint_neck_is_named(blind10):
