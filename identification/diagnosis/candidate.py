@@ -300,26 +300,21 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
                               False, False, "not identifiable: " + (notes[0] if notes else "no fit"),
                               {}, -math.inf, ctx.alpha_candidate)
     cand = _scored(ctx, best)
-    if best[1].identification.locates_joint and best[1].get("joint") is None and not cand.passes_tests:
-        # every joint at once passed its training F-test but fails held out: its columns on the
-        # joints without the effect fit noise there (a side spring's error on joint 2 of a 12 s
-        # multisine: joint torque 2 99 % better held out, joints 1 and 3 41 % and 16 % worse).  The
-        # one-joint form, whose 2 N places already pay for having tried both forms (Bonferroni:
-        # alpha / 2 for every joint, alpha / 2N for each joint alone), is scored as well
-        one = search_one_joint(ctx, trial, name, best)
-        if one is not None:
-            alt = _scored(ctx, one)
-            if (alt.passes_tests, alt.margin) > (cand.passes_tests, cand.margin):
-                cand = alt
-    if best[1].identification.locates_cable and best[1].get("cable") is None and not cand.passes_tests:
-        # the same for a motor-side friction on one cable: fitted on every cable, its columns on the
-        # others fit noise (a Stribeck bump on cable 2 beside a spring error, 12 s multisine: -13 %
-        # of S held out at step 2); its 2 C places pay for both forms
-        one = search_one_cable_form(ctx, trial, name, best)
-        if one is not None:
-            alt = _scored(ctx, one)
-            if (alt.passes_tests, alt.margin) > (cand.passes_tests, cand.margin):
-                cand = alt
+    # every joint (cable) at once passed its training F-test but fails held out: its columns on
+    # the joints without the effect fit noise there (a side spring's error on joint 2 of a 12 s
+    # multisine: joint torque 2 99 % better held out, joints 1 and 3 41 % and 16 % worse; a
+    # Stribeck bump on cable 2 beside a spring error: -13 % of S held out at step 2).  The one-joint
+    # (one-cable) form, whose 2 N (2 C) places already pay for having tried both forms (Bonferroni:
+    # alpha / 2 for every joint, alpha / 2N for each joint alone), is scored as well
+    ident = best[1].identification
+    for locates, key, search_one in ((ident.locates_joint, "joint", search_one_joint),
+                                     (ident.locates_cable, "cable", search_one_cable_form)):
+        if locates and best[1].get(key) is None and not cand.passes_tests:
+            one = search_one(ctx, trial, name, best)
+            if one is not None:
+                alt = _scored(ctx, one)
+                if (alt.passes_tests, alt.margin) > (cand.passes_tests, cand.margin):
+                    cand = alt
     return cand
 
 
