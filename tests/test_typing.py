@@ -43,7 +43,7 @@ PUBLIC_MODULES = [
     "controllers.computed_torque", "controllers.trajectories", "controllers.run_result", "controllers.parallel",
     "neck_sim.batch", "neck_sim.recorder", "neck_sim.replay", "controllers.closed_loop", "controllers.experiments",
     "identification.diagnosis.pipeline", "identification.diagnosis.result", "identification.diagnosis.settings",
-    "identification.diagnosis.parameters",
+    "identification.diagnosis.parameters", "identification.output_error.fit",
 ]
 
 

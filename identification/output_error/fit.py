@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import inspect
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from identification.output_error.intervals import Z95, hac_jacobian_covariance
 from identification.output_error.misfit import cost_ratios, misfit_lines
 from identification.output_error.settings import OutputErrorSettings
-from identification.output_error.problem import SIGNALS, Layout, noise_sigmas, residual_samples, residuals
+from identification.output_error.problem import SIGNALS, Layout, Measured, noise_sigmas, residual_samples, residuals
 from identification.output_error import _serial, rollouts as engine, solver
 
 __all__ = ["OutputErrorSettings", "OutputErrorResult", "fit", "cost_at", "choose_integrator"]
@@ -120,7 +122,8 @@ class _Evaluator:
     def __init__(self, measured, layout: Layout, integrator: str, bar):
         self.measured, self.layout, self.integrator, self.bar = measured, layout, integrator, bar
         self.sigmas = noise_sigmas(layout.params)
-        self.rollouts, self.rejected, self.simulated_s, self.cpu_s = 0, [], 0.0, 0.0
+        self.rollouts, self.simulated_s, self.cpu_s = 0, 0.0, 0.0
+        self.rejected: list[str] = []
         self.coarse_rollouts = 0
 
     def runs(self, X, coarse: tuple | None = None) -> tuple[list, list]:
@@ -128,7 +131,8 @@ class _Evaluator:
         ``coarse`` (timestep s, integrator) rolls out on that cheaper model instead of the fit's
         (every run None when an effect keeps state outside MuJoCo's: the batch engine cannot)."""
         K = len(X)
-        plants, reasons = [], [None] * K
+        plants: list[tuple | None] = []
+        reasons: list[str | None] = [None] * K
         for k, x in enumerate(X):
             try:
                 plants.append(self.layout.plant(x))
@@ -139,23 +143,26 @@ class _Evaluator:
         if coarse is not None and (not _UNQUANTISED or any(p is not None and _outside(p[1], m) for p in plants)):
             return [None] * K, ["the Jacobian's coarse model needs the batch engine"] * K
         ok = [k for k in range(K) if plants[k] is not None]
-        runs = [[] if plants[k] is not None else None for k in range(K)]
+        models = [p[0] for p in plants if p is not None]
+        effects = [p[1] for p in plants if p is not None]
+        runs: list[list | None] = [[] if plants[k] is not None else None for k in range(K)]
         cpu0 = time.process_time()
         for meas in self.measured:
             if coarse is None:
-                out = _rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], self.integrator)
+                out = _rollout(meas.replay, models, effects, self.integrator)
             else:
-                out = _coarse_rollout(meas.replay, [plants[k][0] for k in ok], [plants[k][1] for k in ok], *coarse)
+                out = _coarse_rollout(meas.replay, models, effects, *coarse)
                 self.coarse_rollouts += len(ok)
             self.rollouts += len(ok)
             self.simulated_s += len(ok) * meas.duration_s
             for i, k in enumerate(ok):
-                if runs[k] is None:
+                run = runs[k]
+                if run is None:
                     continue
                 if out.diverged[i]:
                     runs[k], reasons[k] = None, f"{meas.name}: {out.reasons[i]}"
                 else:
-                    runs[k].append((out.encoders[i], out.camera_alpha[i]))
+                    run.append((out.encoders[i], out.camera_alpha[i]))
         self.cpu_s += time.process_time() - cpu0
         if self.bar is not None:
             self.bar.update(len(ok) * len(self.measured))
@@ -165,7 +172,7 @@ class _Evaluator:
         return residuals(self.measured, run, self.sigmas)
 
 
-def cost_at(measured, layout: Layout, x, integrator: str) -> dict:
+def cost_at(measured: Sequence[Measured], layout: Layout, x: ArrayLike, integrator: str) -> dict:
     """Cost ratio per signal (:func:`misfit.cost_ratios`) of one parameter vector; ValueError if
     its re-simulation diverges."""
     ev = _Evaluator(measured, layout, integrator, None)
@@ -231,8 +238,8 @@ def _solve(ev: _Evaluator, layout: Layout, x0, scale, s: OutputErrorSettings):
                         floor=0.5 * n)
 
 
-def fit(measured, layout: Layout, x0, settings: OutputErrorSettings | None = None, *,
-        progress: bool = False, notes=()) -> OutputErrorResult:
+def fit(measured: Sequence[Measured], layout: Layout, x0: ArrayLike, settings: OutputErrorSettings | None = None,
+        *, progress: bool = False, notes: Sequence[str] = ()) -> OutputErrorResult:
     """Fit ``layout``'s parameters to ``measured`` (one parameter set for all) from ``x0``, in one
     solve over the whole logs.
 
