@@ -283,11 +283,12 @@ def main(argv=None) -> int:
     for name, cpu, in_rollouts, n, what in breakdown:
         print(f"{name:28} {cpu:8.1f} {n:9d} {in_rollouts:12.1f} {in_rollouts / n:12.3f} {cpu - in_rollouts:7.2f}  {what}")
     print(f"\nper rollout ({args.cost_sets} parameter sets, {T / log.params.control.rate_hz:.1f} s each)")
-    head = f"{'engine':44} {'CPU s':>8} {'wall s':>8} {'wall / batch 1 thread':>22}"
+    width = max(len("engine"), *(len(name) for name, _, _ in cost))
+    head = f"{'engine':{width}} {'CPU s':>8} {'wall s':>8} {'wall / batch 1 thread':>22}"
     print(head)
     print("-" * len(head))
     for name, cpu, wall in cost:
-        print(f"{name:44} {cpu:8.3f} {wall:8.3f} {wall / cost[0][2]:22.2f}")
+        print(f"{name:{width}} {cpu:8.3f} {wall:8.3f} {wall / cost[0][2]:22.2f}")
     if args.json:
         from neck_sim.atomic import atomic_write_json
 
