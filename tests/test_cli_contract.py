@@ -112,6 +112,7 @@ def _input_cases(d):
         ["identify", str(d / "empty.mcap"), "--method", "output-error", "--model", str(d / "broken.json")],
         ["identify", str(d / "empty.mcap"), "--method", "output-error", "--model", str(d / "good.json")],
         ["identify", str(d / "empty.mcap"), "--method", "output-error", "--integrator", "euler-ish"],
+        ["identify", str(d / "empty.mcap"), "--exact-jacobian"],
         ["identify", str(d / "empty.mcap"), str(d / "empty.mcap"), "--method", "output-error"],
         # a multi-line message from deep inside (the routing table of a neck the laws cannot drive)
         ["simulate", "--params", str(d / "mixed4.json"), "--law", "1", "--no-log", "--no-progress"],
@@ -273,3 +274,18 @@ def test_ctrl_c_inside_an_extension_import_is_an_interrupt(monkeypatch, capsys):
     assert cli.main(["params"]) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "interrupted (Ctrl-C)" in err, err
+
+
+def test_exact_jacobian_puts_every_column_on_the_fit_model():
+    """`identify --exact-jacobian`: no Jacobian column on the cheaper model; without it, the
+    settings' default cheaper model for f_s, k and lambda."""
+    from identification.output_error.settings import OutputErrorSettings
+    from neck_sim.cli import build_parser
+    from neck_sim.cli.identify_cmd import output_error_settings
+
+    def settings(*extra):
+        return output_error_settings(build_parser().parse_args(["identify", "x.mcap", "--method", "output-error", *extra]))
+
+    assert settings("--exact-jacobian").jacobian_timestep is None
+    assert settings().jacobian_timestep == OutputErrorSettings().jacobian_timestep > 0
+    assert settings("--exact-jacobian", "--max-evaluations", "3").max_evaluations == 3
