@@ -15,7 +15,7 @@ from identification.diagnosis.search import (_refine_between, located_comparison
 from identification.diagnosis.materiality import candidate_decision, own_comparison
 from identification.diagnosis.support import log_support, separability_gap, unsupported_items
 from identification.diagnosis.statistics import (Comparison, block_scores, channel_wilcoxon_p, clearly_nonzero,
-                                                 explained_share, in_band, margin_ratio, score)
+                                                 explained_share, f_test_p, in_band, margin_ratio, score)
 
 
 @dataclass(frozen=True)
@@ -318,11 +318,32 @@ def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
     return cand
 
 
+def one_cable_p_bound(ctx: StepContext, every) -> float:
+    """A lower bound on the training F-test p (times its 2 C places: ``located_comparison``) of the
+    one-cable form of the every-cable ``trial`` entry ``every``: the every-cable form's training
+    gain over the step's baseline credited to one cable's parameters (the magnitudes of one cable,
+    its shape keys and the cable).  One cable's columns cannot gain more than every cable's at the
+    same shape, and a term passes only with that p below the candidate's level
+    (:meth:`~identification.diagnosis.statistics.Comparison.significant`)."""
+    s, term, fit = every
+    C = ctx.data.C
+    per_cable = max(1, (fit.n_params - ctx.base.fit.n_params) // C)
+    added = per_cable + len(term.shape) + 1
+    p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
+                 max(ctx.n_eff - ctx.base.fit.n_params - per_cable - added, 1))
+    return min(1.0, p * term.identification.places(dict(term.shape) | {"cable": 1}, ctx.data.n, C))
+
+
 def search_one_cable_form(ctx: StepContext, trial, name: str, every):
     """Best ``trial`` entry of candidate ``name`` located on one cable (shape key ``cable``,
     ``EffectColumns.locates_cable``): the cable whose column alone fits best at the shape of
     ``every`` (the every-cable entry), then at that cable the shape grid and the refined shape
-    (``Shape.refine``) between the best grid point's neighbours; None when nothing fits."""
+    (``Shape.refine``) between the best grid point's neighbours; None when nothing fits, and not
+    searched (None) when that form could not pass its training F-test (:func:`one_cable_p_bound`:
+    on a clean log the every-cable gain is noise and the C + grid + refine fits are spared)."""
+    if not one_cable_p_bound(ctx, every) < ctx.alpha_candidate:
+        return None
+
     def on(cable: int, shape) -> tuple:
         return tuple(sorted(tuple((k, v) for k, v in shape if k != "cable") + (("cable", cable),)))
 

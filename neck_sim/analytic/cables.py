@@ -99,7 +99,7 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     l_l, dl_l, ddl_l, l_r, dl_r, ddl_r = sides
     t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
     if 2 in want:
-        jl = _joint_local(alpha, b, L)
+        jl = _joint_local(alpha, b, L, sides)
     out = {k: np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1])) for k in want}
     slopes = _segment_slopes(alpha, b, L, r, sides) if 1 in want else None
 
@@ -137,7 +137,7 @@ def _geom(params: NeckParams) -> tuple[float, float, float]:
 
 def _cases(params: NeckParams) -> np.ndarray:
     """Segment kind of every (cable j, joint i), (m, N) int (:meth:`Routing.segment_cases`)."""
-    return params.routing.segment_cases(params.n_joints)
+    return _routing_terms(params)[0]
 
 
 def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
@@ -146,13 +146,36 @@ def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
 
 
 def _evaluate(alpha: np.ndarray, params: NeckParams, orders) -> dict:
-    cases = _cases(params)
-    return _segments(alpha, *_geom(params), orders=orders, left_strut=bool(np.any(cases == SEG_LEFT_STRUT)))
+    return _segments(alpha, *_geom(params), orders=orders, left_strut=_routing_terms(params)[2])
 
 
 def _lengths(alpha: np.ndarray, params: NeckParams, seg0: np.ndarray) -> np.ndarray:
     """Sum of the cables' segments minus their value at the straight pose, (..., m)."""
-    return _gather(seg0, _cases(params)).sum(axis=-1) - _straight_sums(*_geom(params), params.routing, params.n_joints)
+    cases, straight, _ = _routing_terms(params)
+    return _gather(seg0, cases).sum(axis=-1) - straight
+
+
+# (id(routing), N, b, L, r) -> (routing, its terms): a Routing's dataclass hash walks every cable's
+# tuples, which cost more than the 10-joint control step's cable geometry itself at every call.
+# The routing object is kept with its entry, so its id cannot be reused while the entry lives.
+_BY_ROUTING: dict = {}
+
+
+def _routing_terms(params: NeckParams) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(segment cases (m, N), :func:`_straight_sums` (m,) m, whether a cable takes the mirror of
+    case (d)) of ``params``' routing and geometry, computed once per routing object."""
+    routing, n = params.routing, params.n_joints
+    geom = _geom(params)
+    key = (id(routing), n) + geom
+    hit = _BY_ROUTING.get(key)
+    if hit is not None and hit[0] is routing:
+        return hit[1]
+    cases = routing.segment_cases(n)
+    terms = (cases, _straight_sums(*geom, routing, n), bool(np.any(cases == SEG_LEFT_STRUT)))
+    if len(_BY_ROUTING) >= 256:
+        _BY_ROUTING.clear()
+    _BY_ROUTING[key] = (routing, terms)
+    return terms
 
 
 @functools.lru_cache(maxsize=256)

@@ -155,11 +155,16 @@ def _corner_terms(a, b, L, sides):
 corner_terms_kernel = _corner_terms.jit
 
 
-def _joint_local(a: np.ndarray, b: float, L: float) -> _JointLocal:
-    sides = _side_terms(a, b, L)
+def _joint_local(a: np.ndarray, b: float, L: float, sides: tuple | None = None) -> _JointLocal:
+    """Corners of joints at angles ``a`` (rad); ``sides``: :func:`_side_terms` of the same ``a``
+    when the caller has them already."""
+    if sides is None:
+        sides = _side_terms(a, b, L)
     k = _corner_terms(a, b, L, sides)
-    return _JointLocal(SideLengths(*sides), _vec2(k[0], k[1]), _vec2(k[2], k[3]), _vec2(k[4], k[5]),
-                       _vec2(k[6], k[7]), _vec2(k[8], k[9]), _vec2(k[10], k[11]))
+    # one (..., 6, 2) block for the six points: the control step calls this every estimate
+    xy = np.stack(k, -1)
+    xy = xy.reshape(xy.shape[:-1] + (6, 2))
+    return _JointLocal(SideLengths(*sides), *(xy[..., i, :] for i in range(6)))
 
 
 def joint_corners(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:

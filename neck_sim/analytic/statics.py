@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from neck_sim.analytic.cables import CableKinematics, cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, gravity_spring_torque, static_elongation
-from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables, side_lengths
+from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables
 from neck_sim.params import NeckParams
 
 __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
@@ -116,7 +116,7 @@ def potential_hessian(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
     H = tail[..., j] + b_i[..., j]
     H[..., idx, idx] = tail + c_i
     H *= inert.gravity
-    sd = side_lengths(a, params)
+    sd = jl.sides                               # side_lengths(a, params), computed with the corners
     k = np.asarray(params.springs.stiffness)
     l0 = params.springs.rest_length
     H[..., idx, idx] += k * ((sd.l_l - l0) * sd.ddl_l + sd.dl_l ** 2 + (sd.l_r - l0) * sd.ddl_r + sd.dl_r ** 2)
