@@ -523,3 +523,11 @@ def test_a_step_of_look_alikes_is_reported_as_alternatives():
                      "log supports one of them and cannot tell which; dry_friction has the larger cross-validated "
                      "improvement"]
     assert look_alike_lines(SimpleNamespace(steps=(alone, nothing))) == []
+    # compared on one cable (selection.one_cable_pair): the line names it
+    from identification.diagnosis.selection import EncompassingTest, Step
+
+    on1 = Step(None, None, (), ["dry_friction", "pulley_friction"], object(),
+               (EncompassingTest("dry_friction", "pulley_friction", None, None, False, False, cable=1),))
+    assert look_alike_lines(SimpleNamespace(steps=(on1,))) == [
+        "step 1: dry_friction or pulley_friction: fitted together on cable 1 neither adds to the other, so this log "
+        "supports one of them and cannot tell which; dry_friction has the larger cross-validated improvement"]
