@@ -61,9 +61,10 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
 
 def look_alike_lines(diag) -> list[str]:
     """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, not effects found together."""
-    return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together neither adds to the other, so this log supports "
-            f"one of them and cannot tell which; {st.verdict[0]} has the larger cross-validated improvement"
-            for i, st in enumerate(diag.steps) if st.chosen is not None and isinstance(st.verdict, list)]
+    return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together{getattr(st, 'look_alike_where', '')} neither "
+            f"adds to the other, so this log supports one of them and cannot tell which; {st.verdict[0]} has the larger "
+            "cross-validated improvement" for i, st in enumerate(diag.steps)
+            if st.chosen is not None and isinstance(st.verdict, list)]
 
 
 def format_summary(diag) -> str:
@@ -415,8 +416,7 @@ def _markdown(diag, figures: dict) -> str:
                                 g.before.alpha_hat_vs_camera.holdout, g.after.alpha_hat_vs_camera.holdout))
         L.append("")
     b, a = diag.baseline, diag.final
-    L += ["## Baseline vs final model (held-out data)", "",
-          f"Final model: **{a.description}**.", "",
+    L += ["## Baseline vs final model (held-out data)", "", f"Final model: **{a.description}**.", "",
           "| residual | channel | baseline | final | final/baseline |", "|---|---|---|---|---|"]
     L += _rms_rows(b.residual_rms_crossvalidated, a.residual_rms_crossvalidated)
     if b.alpha_hat_vs_camera and a.alpha_hat_vs_camera:
@@ -455,8 +455,8 @@ def _markdown(diag, figures: dict) -> str:
         for t in st.pairwise:
             if t.error:
                 continue
-            L.append(f"\nEncompassing test {t.a} vs {t.b}: {t.b} adds to {t.a}: "
-                     f"{t.b_adds_to_a.improvement * 100:.1f} % (p {t.b_adds_to_a.p_holdout:.2g}), "
+            L.append(f"\nEncompassing test {t.a} vs {t.b}{'' if t.cable is None else f' (on cable {t.cable})'}: "
+                     f"{t.b} adds to {t.a}: {t.b_adds_to_a.improvement * 100:.1f} % (p {t.b_adds_to_a.p_holdout:.2g}), "
                      f"{t.a} adds to {t.b}: {t.a_adds_to_b.improvement * 100:.1f} % "
                      f"(p {t.a_adds_to_b.p_holdout:.2g}).")
         L.append("")

@@ -6,13 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec
+from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term
 from neck_sim import effects as effect_registry
 from identification.diagnosis.candidate import CandidateScore, evaluate_candidate
+from identification.diagnosis.columns import MotorColumns
 from identification.diagnosis.fitting import Evaluated, StepContext, fit_baseline
 from identification.diagnosis.settings import DiagnosisSettings
 from identification.diagnosis.split import Split
-from identification.diagnosis.statistics import Comparison, encompassing_outcome
+from identification.diagnosis.statistics import Comparison, clearly_nonzero, encompassing_outcome
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,6 +26,12 @@ class Step:
     verdict: object                # effect name, list of names (ambiguous), or "none"
     chosen: CandidateScore | None
     pairwise: tuple = ()           # EncompassingTest between the leader and the other significant ones
+
+    @property
+    def look_alike_where(self) -> str:
+        """" on cable i" when the step's look-alikes were compared on one cable (``EncompassingTest.cable``)."""
+        cables = {t.cable for t in self.pairwise if t.cable is not None}
+        return f" on cable {cables.pop()}" if len(cables) == 1 else ""
 
     @property
     def extended(self) -> Evaluated | None:
@@ -41,7 +48,8 @@ class Step:
 @dataclass(frozen=True)
 class EncompassingTest:
     """Leader ``a`` and look-alike ``b`` fitted together: does each add significantly to the other?
-    ``error`` says why the joint fit failed (then neither adds)."""
+    ``error`` says why the joint fit failed (then neither adds); ``cable`` (1-based) the cable both
+    were compared on in their one-cable forms (:func:`one_cable_pair`), None: as searched."""
 
     a: str
     b: str
@@ -50,24 +58,95 @@ class EncompassingTest:
     a_adds: bool
     b_adds: bool
     error: str = ""
+    cable: int | None = None
 
     def to_dict(self) -> dict:
+        where = {} if self.cable is None else {"on_cable": self.cable}
         if self.error:
-            return {"a": self.a, "b": self.b, "error": self.error, "a_adds": self.a_adds, "b_adds": self.b_adds}
+            return {"a": self.a, "b": self.b, **where, "error": self.error, "a_adds": self.a_adds, "b_adds": self.b_adds}
 
         def side(c: Comparison, adds: bool) -> dict:
             return {"improvement": c.improvement, "p_holdout": c.p_holdout, "p_train": c.p_train, "significant": adds}
 
-        return {"a": self.a, "b": self.b, "b_adds_to_a": side(self.b_adds_to_a, self.b_adds),
+        return {"a": self.a, "b": self.b, **where, "b_adds_to_a": side(self.b_adds_to_a, self.b_adds),
                 "a_adds_to_b": side(self.a_adds_to_b, self.a_adds), "a_adds": self.a_adds, "b_adds": self.b_adds}
 
 
+@dataclass(frozen=True, eq=False)
+class _Form:
+    """What the encompassing test needs of one side: its term, its evaluated model, its added
+    parameters against the step's baseline (columns and shape keys)."""
+
+    term: Term
+    model: Evaluated
+    added_params: int
+
+    @property
+    def fit(self):
+        return self.model.fit
+
+
+def leader_cable(cand: CandidateScore, n_cables: int) -> int | None:
+    """The one cable (1-based) a motor-side candidate with per-cable magnitudes rests on: the cable
+    of its one-cable form, or the only cable whose fitted magnitude is clearly > 0 in its
+    every-cable form; None otherwise (several cables, none, or not a per-cable motor-side effect)."""
+    ident = cand.term.identification
+    col = ident.columns[0] if ident.columns else None
+    if cand.fit is None or not issubclass(ident, MotorColumns) or col is None or col.per != "cable":
+        return None
+    located = ident.cable_of(dict(cand.term.shape))
+    if located is not None:
+        return located
+    v, sg = cand.fit.group(col.symbol), cand.fit.group_sigma(col.symbol)
+    if len(v) != n_cables:
+        return None
+    on = np.nonzero(clearly_nonzero(v, sg) & (v > 0))[0]
+    return int(on[0]) + 1 if on.size == 1 else None
+
+
+def one_cable_pair(ctx: StepContext, a: CandidateScore, b: CandidateScore):
+    """(a, b, cable): two motor-side look-alikes in their forms on the one cable the leader ``a``
+    rests on (:func:`leader_cable`), each at its searched shape, when ``b``'s term can be put on
+    one cable (``EffectColumns.cable_of`` reads its ``cable`` key); else (a, b, None) unchanged.
+
+    Why: their every-cable forms carry C - 1 columns each on cables without the effect, where they
+    fit whatever else those cables' residuals hold (on the 10-joint, 4-cable neck |f_s(2)| up to
+    1.7 N, 9 sigma, with nothing hidden there), and those columns' held-out cost is charged to the
+    comparison of the two laws; on one cable both laws are compared on the same data with one
+    magnitude each (the constant force of eq 37 against the tension-proportional one)."""
+    cable = leader_cable(a, ctx.data.C)
+
+    def located(cand: CandidateScore) -> Term | None:
+        shape = {k: v for k, v in cand.term.shape if k != "cable"}
+        term = Term(cand.term.name, tuple({**shape, "cable": float(cable)}.items()))
+        return term if term.identification.cable_of(dict(term.shape)) == cable else None
+
+    if cable is None or b.fit is None:
+        return a, b, None
+    ta, tb = located(a), located(b)
+    if ta is None or tb is None:
+        return a, b, None
+
+    def form(cand: CandidateScore, term: Term) -> _Form:
+        if term == cand.term:
+            return _Form(cand.term, cand.model, cand.added_params)
+        ev = ctx.evaluate(ctx.base.fit.model.plus(term))
+        return _Form(term, ev, ev.fit.n_params - ctx.base.fit.n_params + len(term.shape))
+
+    try:
+        return form(a, ta), form(b, tb), cable
+    except ValueError:            # a form that cannot be fitted on that cable: compared as searched
+        return a, b, None
+
+
 def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> EncompassingTest:
-    """Fit base + A + B; does each add significantly to the other?"""
+    """Fit base + A + B; does each add significantly to the other?  Two motor-side look-alikes
+    are compared on the leader's one cable when it rests on one (:func:`one_cable_pair`)."""
+    a, b, cable = one_cable_pair(ctx, a, b)
     try:
         both = ctx.evaluate(ctx.base.fit.model.plus(a.term).plus(b.term), a.fit.state)
     except ValueError as exc:
-        return EncompassingTest(a.term.name, b.term.name, None, None, False, False, str(exc))
+        return EncompassingTest(a.term.name, b.term.name, None, None, False, False, str(exc), cable)
     b_to_a = ctx.compare(a.model, both, b.added_params)
     a_to_b = ctx.compare(b.model, both, a.added_params)
     if b_to_a.improvement < 0 and a_to_b.improvement < 0:
@@ -76,17 +155,17 @@ def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> Encompa
         # beats the other one on held-out data by itself (improvement and Wilcoxon test)
         head = ctx.compare(b.model, a.model, 0)
         wins = head.improvement >= 0.5 * ctx.settings.min_improvement and head.p_holdout < ctx.settings.alpha
-        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, wins, False)
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, wins, False, cable=cable)
     half = 0.5 * ctx.settings.min_improvement
     if b_to_a.improvement < 0 <= half <= a_to_b.improvement:
         # B, with the shape it was searched with alone, makes A's held-out prediction worse: it
         # adds nothing to A (its shape absorbed A's signal), while A improves on B
-        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, True, False)
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, True, False, cable=cable)
     if a_to_b.improvement < 0 <= half <= b_to_a.improvement:
-        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, False, True)
+        return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, False, True, cable=cable)
     # half the minimum improvement: the second effect only has to add to the first
     return EncompassingTest(a.term.name, b.term.name, b_to_a, a_to_b, ctx.significant(a_to_b, 0.5),
-                            ctx.significant(b_to_a, 0.5))
+                            ctx.significant(b_to_a, 0.5), cable=cable)
 
 
 def decide(ctx: StepContext, cands) -> tuple[object, CandidateScore | None, tuple]:
