@@ -69,14 +69,16 @@ def search_shape(ctx: StepContext, name: str, trial):
 
 
 def _refine_between(trial, name: str, shape: Shape, key: str, best):
-    """``best`` (a ``trial`` entry whose term sets ``key`` on ``shape``'s grid) or the minimiser of
-    the training score between that grid point's neighbours (the term's other shape keys kept),
-    whichever scores lower."""
+    """``best`` (a ``trial`` entry whose term sets ``key``) or the minimiser of the training score
+    between the grid points on either side of its value (the term's other shape keys kept),
+    whichever scores lower.  The value need not be on the grid: a one-cable search starts from the
+    every-cable form's refined shape."""
     log_scale = shape.refine == "log"
     grid = sorted(shape.grid)
-    i = grid.index(best[1].get(key))
-    lo = grid[i - 1] if i > 0 else (0.0 if not log_scale else grid[0] / 2)
-    hi = grid[i + 1] if i + 1 < len(grid) else 2 * grid[-1]
+    v = best[1].get(key)
+    below, above = [g for g in grid if g < v], [g for g in grid if g > v]
+    lo = below[-1] if below else (0.0 if not log_scale else grid[0] / 2)
+    hi = above[0] if above else 2 * grid[-1]
     to = (lambda u: float(np.exp(u))) if log_scale else (lambda u: u)
     a, b = (np.log(lo), np.log(hi)) if log_scale else (lo, hi)
     rest = tuple((k, v) for k, v in best[1].shape if k != key)
