@@ -71,7 +71,7 @@ class SimexDetail:
     naive: float
     means: tuple
     stderr: tuple
-    linear: float
+    quadratic: float
     sigma_naive: float
     sigma_realization: float
     sigma_spread: float
@@ -113,20 +113,20 @@ def simex_extrapolate(lambdas, estimates, naive: float, naive_sigma: float) -> t
     # floored so that no point takes every weight
     floor = max(float(se[1:].mean()), 1e-12 * max(abs(naive), 1.0))
     w = 1.0 / np.maximum(se, floor)
-    value = _polynomial_at_minus_one(lam, means, w, 2)
+    value = _polynomial_at_minus_one(lam, means, w, 1)
     parts = []
     for k in range(1, lam.size):
         m = means.copy()
         m[k] += se[k]
-        parts.append(_polynomial_at_minus_one(lam, m, w, 2) - value)
+        parts.append(_polynomial_at_minus_one(lam, m, w, 1) - value)
     spread = float(math.sqrt(sum(p * p for p in parts)))
     # first order in the added noise's amplitude: a replicate's variance grows as lambda
     realization = float(math.sqrt(np.mean([r.var(ddof=1) / lam_k for r, lam_k in zip(reps, lam[1:])])))
-    linear = _polynomial_at_minus_one(lam, means, w, 1)
-    sigma = float(math.sqrt(naive_sigma ** 2 + realization ** 2 + spread ** 2 + (value - linear) ** 2))
+    quadratic = _polynomial_at_minus_one(lam, means, w, 2)
+    sigma = float(math.sqrt(naive_sigma ** 2 + realization ** 2 + spread ** 2 + (quadratic - value) ** 2))
     detail = SimexDetail(tuple(float(x) for x in lam[1:]), float(naive), tuple(float(x) for x in means[1:]),
-                         tuple(float(x) for x in se[1:]), linear, float(naive_sigma), realization, spread,
-                         abs(value - linear))
+                         tuple(float(x) for x in se[1:]), quadratic, float(naive_sigma), realization, spread,
+                         abs(quadratic - value))
     return value, sigma, detail
 
 
