@@ -51,7 +51,7 @@ __all__ = ["LAMBDAS", "REPLICATES", "SimexDetail", "simex_extrapolate", "noisier
 #: Extra camera-noise variance, in multiples of the stated sigma^2, of the SIMEX replicates.
 LAMBDAS = (0.5, 1.0, 2.0)
 #: Antithetic pairs per lambda (each replicate refits the step's baseline and the named model).
-REPLICATES = 6
+REPLICATES = 10
 
 SIMEX_NOTE = ("corrected for the camera's angle noise by simulation-extrapolation (errors_in_variables.py); "
               "sigma: eq (50) of the weighted fit, one noise realization's spread, the extrapolation's and its form's")
