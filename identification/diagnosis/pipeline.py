@@ -123,8 +123,9 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
         c = st.chosen
         if c is None:
             continue
+        before = steps[i - 1].chosen if i > 0 else None       # the step's baseline started from its fit
         params = _finding_parameters(StepContext(data, split, s, st.base, st.scales), c,
-                                     None if i == 0 else chosen_fit(steps[i - 1].chosen).state)
+                                     None if before is None else chosen_fit(before).state)
         findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
                                 shape_located(cables_of(chosen_fit(c), c.term), params, c.term),
                                 joints_of(chosen_fit(c), c.term), params, c,
