@@ -11,6 +11,7 @@ import numpy as np
 
 from identification.diagnosis.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext, fit_baseline
+from identification.diagnosis.errors_in_variables import corrected_parameters
 from identification.diagnosis.gains import AlphaHatErrors, alpha_hat_errors, residual_rms
 from identification.diagnosis.parameters import (all_parameters, cables_of, chosen_fit, joints_of, shape_located,
                                                   term_parameters)
@@ -122,14 +123,22 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
         c = st.chosen
         if c is None:
             continue
-        ctx = StepContext(data, split, s, st.base, st.scales)
-        params = term_parameters(ctx, c)
+        before = steps[i - 1].chosen if i > 0 else None       # the step's baseline started from its fit
+        params = _finding_parameters(StepContext(data, split, s, st.base, st.scales), c,
+                                     None if before is None else chosen_fit(before).state)
         findings.append(Finding(i + 1, st.verdict if isinstance(st.verdict, list) else c.term.name,
                                 shape_located(cables_of(chosen_fit(c), c.term), params, c.term),
                                 joints_of(chosen_fit(c), c.term), params, c,
                                 Gain(summaries[i], summaries[i + 1]), () if leftover is None else leftover.found))
     return Diagnosis(source, spec, split, tuple(steps), tuple(findings), tuple(summaries),
                      ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes), gaps, summary)
+
+
+def _finding_parameters(ctx: StepContext, cand, state) -> dict:
+    """A named candidate's parameters, its magnitudes corrected for the camera's noise where its
+    columns need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`;
+    ``state`` the fit state the step's baseline started from)."""
+    return corrected_parameters(ctx, cand, term_parameters(ctx, cand), state)
 
 
 def diagnose_log(log: Log | str | os.PathLike, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,

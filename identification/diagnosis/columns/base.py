@@ -223,6 +223,9 @@ class EffectColumns:
     uses_tension: ClassVar[bool] = False        # columns need the tension estimate (iterated fit)
     columns_exact: ClassVar[bool] = True        # columns x values = the plant's law exactly (False: the
     #                                             plant's law is a MuJoCo constraint the columns smooth)
+    # its magnitudes read the camera's noisy joint accelerations on both sides of the equation (an
+    # inertial term): corrected by simulation-extrapolation when C < N (diagnosis/errors_in_variables.py)
+    camera_noise_bias: ClassVar[bool] = False
     # a term may carry the shape key ``joint`` (1-based): its per-joint and per-spring columns on
     # that joint only (one joint's spring error, one hinge's friction), searched joint by joint
     locates_joint: ClassVar[bool] = False

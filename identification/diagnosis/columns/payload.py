@@ -28,6 +28,9 @@ class PayloadColumns(EffectColumns):
 
     effect: ClassVar[str] = Payload.name
     columns: ClassVar[tuple] = (Column("payload", "kg", per="one"),)
+    # M(alpha) alpha_ddot of the head on the camera's angles, against the nominal neck's on the same
+    # angles in the observation: errors in variables when C < N (the camera alone gives alpha)
+    camera_noise_bias: ClassVar[bool] = True
 
     @classmethod
     def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
