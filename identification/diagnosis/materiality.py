@@ -44,7 +44,8 @@ from identification.filtering import lowpass
 from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "p_times", "own_channels",
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "in_own_band", "p_times",
+           "own_channels",
            "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
@@ -118,6 +119,12 @@ def own_band_hz(common_hz: float) -> float:
     log's common cutoff ``common_hz`` (the torque row's noise, the camera's angles differentiated,
     lies mostly above it; the term's columns, which follow the poses and the joint's speed, below)."""
     return OWN_BAND * common_hz
+
+
+def in_own_band(v: np.ndarray, prep) -> np.ndarray:
+    """A slow-grid signal ``v`` (S, ...) zero-phase low-passed at :func:`own_band_hz` of the
+    pre-processing ``prep``'s common cutoff (``identification.preprocessing.Prepared``)."""
+    return lowpass(v, prep.rate_hz, own_band_hz(prep.cutoffs["common"].hz))
 
 
 def _band(res: np.ndarray, ch: list[int], rate_hz: float, band_hz: float) -> np.ndarray:

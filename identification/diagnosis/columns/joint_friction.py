@@ -12,6 +12,7 @@ from neck_sim.mjcf import pose_qpos
 from neck_sim.params import NeckParams
 
 from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext, Shape
+from identification.diagnosis.materiality import in_own_band
 
 __all__ = ["JointFrictionColumns", "hinge_lever", "joint_speed_from_encoders"]
 
@@ -57,8 +58,14 @@ class JointFrictionColumns(EffectColumns):
             if data.C < data.n:
                 # C < N motor speeds do not determine N joint speeds (eq 35 has a null space: its
                 # least-squares solution is the minimum-norm one, which halves a lone joint's
-                # friction column on the 10-joint, 4-cable neck): the camera's speed instead
-                return hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
+                # friction column on the 10-joint, 4-cable neck): the camera's speed instead, and
+                # only in the band where it reads the joint's motion (below half the common
+                # cutoff): above it a joint chatters at 1-3 Hz (40-55 % of its speed's power on
+                # the blind logs) under 1 deg of differentiated camera noise, so the tanh of that
+                # speed follows neither the hinge's sign nor its size (a low joint's hinge read
+                # -41 % and +19 % with the full band; -12 % and +4 % with the plant's own speed)
+                col = hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
+                return in_own_band(col, data.prep)
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
             speed = joint_speed_from_encoders(data.theta_dot_fast, alpha_fast, data.params)
             fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / shape["width"])
