@@ -347,34 +347,38 @@ def test_a_located_term_has_its_joints_columns_and_its_p_values_count_the_joints
 
 def test_the_hinge_column_of_a_neck_with_fewer_cables_than_joints_keeps_the_band_the_camera_reads():
     """The 10x4 neck's hinge column takes the camera's joint speed, which follows the joint's
-    motion only below half the common cutoff (1.375 Hz here); there the column is the lever times
-    tanh(alpha_dot / w).  Joint 2 moves at 0.2 Hz (0.3 rad/s, w = 0.2 rad/s: a smooth tanh): its
-    column is lever x tanh(alpha_dot / w) within 1 % away from the ends.  Joint 3 chatters at
-    2.6 Hz with the same amplitude, whose tanh is an odd wave at 2.6 Hz and its odd harmonics: the
-    column keeps under 2 % of its rms (the zero-phase Butterworth passes 2.6 Hz at
-    1 / (1 + (2.6 / 1.375)^8) = 0.6 % in amplitude); without the band it would keep all of it."""
+    motion only below half the common cutoff (1.375 Hz here): the column is lever x
+    tanh(alpha_dot / w) projected on that band.  32 s at 31.25 Hz, whole periods.  Joint 2 moves at
+    0.25 Hz (0.3 rad/s, w = 0.2 rad/s: a smooth tanh): its column is lever x tanh(alpha_dot / w)
+    within 1 %.  Joint 3 chatters at 2.5 Hz, above the band with all its harmonics: its column is
+    zero but for the 13th harmonic, 32.5 Hz sampled at 31.25 Hz (1.25 Hz), of order 1e-5.  Joint 4 does both: a fit of its full-band column to its projected one reads exactly 1
+    (a projection: the full band's excess is orthogonal to the band), where a Butterworth low-pass
+    of the same cutoff reads more (its transition band passes part of the chatter, attenuated)."""
     from types import SimpleNamespace
 
     from identification.diagnosis.columns import FitContext, get
     from identification.diagnosis.columns.joint_friction import hinge_lever
+    from identification.filtering import lowpass
 
     p = example_params("neck10x4")
     rate, S, n, C, w = 31.25, 1000, p.n_joints, p.n_cables, 0.2
     t = np.arange(S) / rate
     alpha = np.full((S, n), 0.05)
+    slow, chatter = 0.3 * np.sin(2 * np.pi * 0.25 * t), 0.3 * np.sin(2 * np.pi * 2.5 * t)
     speed = np.zeros((S, n))
-    speed[:, 1], speed[:, 2] = 0.3 * np.sin(2 * np.pi * 0.2 * t), 0.3 * np.sin(2 * np.pi * 2.6 * t)
+    speed[:, 1], speed[:, 2], speed[:, 3] = slow, chatter, slow + chatter
     prep = SimpleNamespace(rate_hz=rate, cutoffs={"common": SimpleNamespace(hz=2.75)})
     cache: dict = {}
     data = SimpleNamespace(params=p, n=n, C=C, S=S, alpha=alpha, alpha_dot=speed, prep=prep,
                            cached=lambda key, f: cache[key] if key in cache else cache.setdefault(key, f()))
     col = get("joint_friction").design(data, {"width": w}, FitContext(np.zeros((S, C)), None, None)).torque
-    lever = hinge_lever(alpha[:1], p)[0]
-    mid = slice(100, S - 100)
-    slow = lever[1] * np.tanh(speed[mid, 1] / w)
-    assert np.abs(col[mid, 1, 1] - slow).max() < 0.01 * np.abs(slow).max()
-    chatter = lever[2] * np.tanh(speed[mid, 2] / w)
-    assert np.sqrt(np.mean(col[mid, 2, 2] ** 2)) < 0.02 * np.sqrt(np.mean(chatter ** 2))
+    full = hinge_lever(alpha, p) * np.tanh(speed / w)
+    assert np.abs(col[:, 1, 1] - full[:, 1]).max() < 0.01 * np.abs(full[:, 1]).max()
+    assert np.abs(col[:, 2, 2]).max() < 1e-4 * np.abs(full[:, 2]).max()
+    c = col[:, 3, 3]
+    assert (c @ full[:, 3]) / (c @ c) == pytest.approx(1.0, abs=1e-9)
+    smooth = lowpass(full[:, 3], rate, 1.375)
+    assert (smooth @ full[:, 3]) / (smooth @ smooth) > 1.01
 
 
 def test_a_hidden_payload_on_the_ten_joint_neck_is_named(blind10):

@@ -122,9 +122,17 @@ def own_band_hz(common_hz: float) -> float:
 
 
 def in_own_band(v: np.ndarray, prep) -> np.ndarray:
-    """A slow-grid signal ``v`` (S, ...) zero-phase low-passed at :func:`own_band_hz` of the
-    pre-processing ``prep``'s common cutoff (``identification.preprocessing.Prepared``)."""
-    return lowpass(v, prep.rate_hz, own_band_hz(prep.cutoffs["common"].hz))
+    """A slow-grid signal ``v`` (S, ...) projected onto the own band (:func:`own_band_hz` of the
+    pre-processing ``prep``'s common cutoff, ``identification.preprocessing.Prepared``): its
+    discrete Fourier components above the band set to zero.  A projection, not the Butterworth of
+    the comparison: a regressor column so projected and fitted to the full-band observation has the
+    coefficient of the observation's own in-band part (the part above the band is orthogonal to it),
+    whereas a low-pass H with 0 < |H| < 1 in its transition band gives sum |H| |C|^2 / sum |H|^2 |C|^2
+    times it (joint 10's hinge on a 59.3 s log: +56 % with the Butterworth, +0.1 % projected)."""
+    x = np.asarray(v, dtype=float)
+    spectrum = np.fft.rfft(x, axis=0)
+    spectrum[np.fft.rfftfreq(x.shape[0], 1.0 / prep.rate_hz) > own_band_hz(prep.cutoffs["common"].hz)] = 0.0
+    return np.fft.irfft(spectrum, x.shape[0], axis=0)
 
 
 def _band(res: np.ndarray, ch: list[int], rate_hz: float, band_hz: float) -> np.ndarray:

@@ -60,10 +60,11 @@ class JointFrictionColumns(EffectColumns):
                 # least-squares solution is the minimum-norm one, which halves a lone joint's
                 # friction column on the 10-joint, 4-cable neck): the camera's speed instead, and
                 # only in the band where it reads the joint's motion (below half the common
-                # cutoff): above it a joint chatters at 1-3 Hz (40-55 % of its speed's power on
-                # the blind logs) under 1 deg of differentiated camera noise, so the tanh of that
-                # speed follows neither the hinge's sign nor its size (a low joint's hinge read
-                # -41 % and +19 % with the full band; -12 % and +4 % with the plant's own speed)
+                # cutoff): above it a joint chatters at 1-3 Hz (45-55 % of its speed's power on
+                # the blind 59.3 s logs of joints 4-5) under 1 deg of differentiated camera noise,
+                # so the tanh of that speed follows neither the hinge's sign nor its size (joints
+                # 5 and 4 read -41 % and +19 % with the full band, -12 % and +4 % with the plant's
+                # own speed, -8.6 % and +26 % +- 23 % projected on the band)
                 col = hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
                 return in_own_band(col, data.prep)
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
