@@ -37,7 +37,8 @@ class JointFrictionColumns(EffectColumns):
     """tau_j (N m per hinge) per joint (with the shape ``joint`` = j, located: joint j's only),
     torque block only: torque x :func:`hinge_lever`(alpha) x
     tanh(alpha_dot / w), alpha_dot from the encoders (:func:`joint_speed_from_encoders`) through
-    the observations' filter chain, w a searched smoothing speed (rad/s).  tanh, not the arctan of
+    the observations' filter chain (C < N: the camera's, the column projected on the own channel's
+    band, ``materiality.in_own_band``), w a searched smoothing speed (rad/s).  tanh, not the arctan of
     eq 36: a hinge's friction saturates at its Coulomb level within about 0.1 rad/s, where
     arctan(v/w) 2/pi is still 0.7-0.9, so an arctan fit overstates the level by 4-16 % (on
     MuJoCo's applied hinge forces along the blind logs, the best arctan reads 1.04-1.08 of the set
@@ -60,7 +61,7 @@ class JointFrictionColumns(EffectColumns):
                 # least-squares solution is the minimum-norm one, which halves a lone joint's
                 # friction column on the 10-joint, 4-cable neck): the camera's speed instead, and
                 # only in the band where it reads the joint's motion (below half the common
-                # cutoff): above it a joint chatters at 1-3 Hz (45-55 % of its speed's power on
+                # cutoff): above it a joint chatters at 1-3 Hz (47-53 % of its speed's power on
                 # the blind 59.3 s logs of joints 4-5) under 1 deg of differentiated camera noise,
                 # so the tanh of that speed follows neither the hinge's sign nor its size (joints
                 # 5 and 4 read -41 % and +19 % with the full band, -12 % and +4 % with the plant's
