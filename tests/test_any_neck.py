@@ -367,9 +367,10 @@ def test_the_hinge_column_of_a_neck_with_fewer_cables_than_joints_keeps_the_band
     tanh(alpha_dot / w) projected on that band.  32 s at 31.25 Hz, whole periods.  Joint 2 moves at
     0.25 Hz (0.3 rad/s, w = 0.2 rad/s: a smooth tanh): its column is lever x tanh(alpha_dot / w)
     within 1 %.  Joint 3 chatters at 2.5 Hz, above the band with all its harmonics: its column is
-    zero but for the 13th harmonic, 32.5 Hz sampled at 31.25 Hz (1.25 Hz), of order 1e-5.  Joint 4 does both: a fit of its full-band column to its projected one reads exactly 1
-    (a projection: the full band's excess is orthogonal to the band), where a Butterworth low-pass
-    of the same cutoff reads more (its transition band passes part of the chatter, attenuated)."""
+    zero but for the 13th harmonic, 32.5 Hz sampled at 31.25 Hz (1.25 Hz), of order 1e-5.  Joint 4
+    does both: a fit of its full-band column to its projected one reads exactly 1 (a projection:
+    the full band's excess is orthogonal to the band), where a Butterworth low-pass of the same
+    cutoff reads more (its transition band passes part of the chatter, attenuated)."""
     from types import SimpleNamespace
 
     from identification.diagnosis.columns import FitContext, get

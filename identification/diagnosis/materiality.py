@@ -45,8 +45,7 @@ from identification.diagnosis.statistics import (Comparison, channel_chunk_reduc
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
 __all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "in_own_band", "p_times",
-           "own_channels",
-           "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
+           "own_channels", "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
