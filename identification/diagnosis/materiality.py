@@ -44,8 +44,8 @@ from identification.filtering import lowpass
 from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "p_times", "own_channels",
-           "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "in_own_band", "p_times",
+           "own_channels", "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
@@ -118,6 +118,20 @@ def own_band_hz(common_hz: float) -> float:
     log's common cutoff ``common_hz`` (the torque row's noise, the camera's angles differentiated,
     lies mostly above it; the term's columns, which follow the poses and the joint's speed, below)."""
     return OWN_BAND * common_hz
+
+
+def in_own_band(v: np.ndarray, prep) -> np.ndarray:
+    """A slow-grid signal ``v`` (S, ...) projected onto the own band (:func:`own_band_hz` of the
+    pre-processing ``prep``'s common cutoff, ``identification.preprocessing.Prepared``): its
+    discrete Fourier components above the band set to zero.  A projection, not the Butterworth of
+    the comparison: a regressor column so projected and fitted to the full-band observation has the
+    coefficient of the observation's own in-band part (the part above the band is orthogonal to it),
+    whereas a low-pass H with 0 < |H| < 1 in its transition band gives sum |H| |C|^2 / sum |H|^2 |C|^2
+    times it (joint 10's hinge on a 59.3 s log: +56 % with the Butterworth, +0.1 % projected)."""
+    x = np.asarray(v, dtype=float)
+    spectrum = np.fft.rfft(x, axis=0)
+    spectrum[np.fft.rfftfreq(x.shape[0], 1.0 / prep.rate_hz) > own_band_hz(prep.cutoffs["common"].hz)] = 0.0
+    return np.fft.irfft(spectrum, x.shape[0], axis=0)
 
 
 def _band(res: np.ndarray, ch: list[int], rate_hz: float, band_hz: float) -> np.ndarray:

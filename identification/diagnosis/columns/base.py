@@ -40,6 +40,7 @@ from neck_sim.effects import Effect
 from neck_sim.params import NeckParams
 
 from identification.diagnosis.statistics import clearly_nonzero
+from identification.preprocessing import Prepared
 
 __all__ = ["ColumnData", "FitContext", "Column", "Shape", "Design", "EffectColumns", "MotorColumns"]
 
@@ -70,6 +71,7 @@ class ColumnData(Protocol):
     x_dot: np.ndarray           # (S, C) m/s, elongation rate of eq (27)
     theta_fast: np.ndarray      # (T, C) rad, the encoders at the control rate
     theta_dot_fast: np.ndarray  # (T, C) rad/s, their speed (motor cutoff only)
+    prep: Prepared              # the pre-processing's output (its rates and cutoffs)
 
     def motor_lowpass(self, v: np.ndarray) -> np.ndarray:
         """A control-rate signal (T, ...) through the encoders' low-pass, at the control rate (T, ...)."""

@@ -12,6 +12,7 @@ from neck_sim.mjcf import pose_qpos
 from neck_sim.params import NeckParams
 
 from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext, Shape
+from identification.diagnosis.materiality import in_own_band
 
 __all__ = ["JointFrictionColumns", "hinge_lever", "joint_speed_from_encoders"]
 
@@ -36,7 +37,8 @@ class JointFrictionColumns(EffectColumns):
     """tau_j (N m per hinge) per joint (with the shape ``joint`` = j, located: joint j's only),
     torque block only: torque x :func:`hinge_lever`(alpha) x
     tanh(alpha_dot / w), alpha_dot from the encoders (:func:`joint_speed_from_encoders`) through
-    the observations' filter chain, w a searched smoothing speed (rad/s).  tanh, not the arctan of
+    the observations' filter chain (C < N: the camera's, the column projected on the own channel's
+    band, ``materiality.in_own_band``), w a searched smoothing speed (rad/s).  tanh, not the arctan of
     eq 36: a hinge's friction saturates at its Coulomb level within about 0.1 rad/s, where
     arctan(v/w) 2/pi is still 0.7-0.9, so an arctan fit overstates the level by 4-16 % (on
     MuJoCo's applied hinge forces along the blind logs, the best arctan reads 1.04-1.08 of the set
@@ -57,8 +59,15 @@ class JointFrictionColumns(EffectColumns):
             if data.C < data.n:
                 # C < N motor speeds do not determine N joint speeds (eq 35 has a null space: its
                 # least-squares solution is the minimum-norm one, which halves a lone joint's
-                # friction column on the 10-joint, 4-cable neck): the camera's speed instead
-                return hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
+                # friction column on the 10-joint, 4-cable neck): the camera's speed instead, and
+                # only in the band where it reads the joint's motion (below half the common
+                # cutoff): above it a joint chatters at 1-3 Hz (47-53 % of its speed's power on
+                # the blind 59.3 s logs of joints 4-5) under 1 deg of differentiated camera noise,
+                # so the tanh of that speed follows neither the hinge's sign nor its size (joints
+                # 5 and 4 read -41 % and +19 % with the full band, -12 % and +4 % with the plant's
+                # own speed, -8.6 % and +26 % +- 23 % projected on the band)
+                col = hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
+                return in_own_band(col, data.prep)
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
             speed = joint_speed_from_encoders(data.theta_dot_fast, alpha_fast, data.params)
             fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / shape["width"])
