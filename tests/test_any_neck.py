@@ -446,12 +446,15 @@ def test_a_hidden_payload_on_the_ten_joint_neck_is_named(blind10, seed):
     squares alone reads 9-16 % low on seeds 1-3), and within two of its sigmas, which hold the
     log's own noise realization (seeds 1-3: +1.3 +- 9.2 %, -9.0 +- 4.6 %, -0.0 +- 7.3 %;
     docs/your-own-neck.md, section 7)."""
+    from identification.diagnosis.report import format_summary
+
     spec, diag = blind10("payload", seed)
     assert diag.verdict == "payload"
     f = diag.findings[0]
     assert not f.cables and not f.joints
     p = f.parameters[spec.symbol]
     assert "simulation-extrapolation" in p.note
+    assert f"{spec.symbol} = " in format_summary(diag) and " kg (SIMEX)" in format_summary(diag)
     np.testing.assert_allclose(p.value, spec.magnitude, rtol=0.10)
     assert abs(p.value - spec.magnitude) <= 2 * p.sigma
 

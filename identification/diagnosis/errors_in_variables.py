@@ -46,6 +46,7 @@ import math
 
 import numpy as np
 
+from identification.diagnosis.parameters import SIMEX_NOTE
 from identification.preprocessing import Measurements
 
 __all__ = ["LAMBDAS", "REPLICATES", "SimexDetail", "simex_extrapolate", "noisier", "step_refit", "simex_estimates",
@@ -56,8 +57,6 @@ LAMBDAS = (0.5, 1.0, 2.0)
 #: Antithetic pairs per lambda (each replicate refits the step's baseline and the named model).
 REPLICATES = 10
 
-SIMEX_NOTE = ("corrected for the camera's angle noise by simulation-extrapolation (errors_in_variables.py); "
-              "sigma: eq (50) of the weighted fit, one noise realization's spread, the extrapolation's and its form's")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,6 +17,11 @@ from identification.diagnosis.statistics import clearly_nonzero, score
 #: ``identify`` does (``identification.uncertainty``); benchmarks/bench_coverage.py measures its
 #: coverage on payload logs.
 EQ50_NOTE = "sigma: eq (50) of the weighted fit (independent residuals), not calibrated"
+#: A magnitude corrected for the camera's angle noise (``errors_in_variables.corrected_parameters``).
+SIMEX_NOTE = ("corrected for the camera's angle noise by simulation-extrapolation (errors_in_variables.py); "
+              "sigma: eq (50) of the weighted fit, one noise realization's spread, the extrapolation's and its form's")
+#: How the summary labels a value by its note.
+NOTE_LABELS = {EQ50_NOTE: " (eq 50)", SIMEX_NOTE: " (SIMEX)"}
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import os
 import numpy as np
 
 from identification.diagnosis.result import method_text
-from identification.diagnosis.parameters import EQ50_NOTE
+from identification.diagnosis.parameters import NOTE_LABELS
 from neck_sim.effects import INSUFFICIENT_EXCITATION, UNEXPLAINED
 
 __all__ = ["write_report", "format_summary"]
@@ -42,7 +42,7 @@ def _param_text(params: dict) -> str:
     for name, p in params.items():
         unit = "" if p.unit in ("-", "") else f" {p.unit}"
         parts.append(f"{name} = {_fmt(p.value)}" + (f" ± {_fmt(p.sigma, digits=2)}" if p.sigma is not None else "")
-                     + unit + (" (eq 50)" if p.note == EQ50_NOTE else ""))
+                     + unit + NOTE_LABELS.get(p.note, ""))
     return "; ".join(parts)
 
 
