@@ -4,11 +4,11 @@ import pytest
 from neck_sim.params import default_params
 
 # Wall seconds of each long test file: the sum of its tests among the 40 slowest of the last
-# fresh-clone CI at rest (2 xdist workers; a lower bound for each file).  `--dist loadfile` hands
-# files to the workers in collection order (`--no-loadscope-reorder` in pyproject.toml; xdist's
-# default would order them by their number of tests, which put 34 s of test_reproduce.py among the
-# last files handed out), so the longest go first and the short ones fill in at the end: both
-# workers then finish within about one short file of each other.
+# fresh-clone CI at rest (2 xdist workers; a lower bound for each file).  `--dist loadfile` with
+# `--no-loadscope-reorder` (pyproject.toml; pytest-xdist >= 3.8) hands files to the workers in
+# collection order; xdist's default orders them by their number of tests, which put the few-test,
+# long files (test_reproduce.py 34 s, test_effect_open.py 25 s) among the last handed out, where one
+# worker can run alone.  Longest first, the short files fill in at the end.
 FILE_SECONDS = {
     "test_discovery_open.py": 115.3,
     "test_docs.py": 110.5,
