@@ -3,6 +3,38 @@ import pytest
 
 from neck_sim.params import default_params
 
+# Wall seconds of each long test file: the sum of its tests among the 40 slowest of the last
+# fresh-clone CI at rest (2 xdist workers; a lower bound for each file).  `--dist loadfile` with
+# `--no-loadscope-reorder` (pyproject.toml; pytest-xdist >= 3.8) hands files to the workers in
+# collection order; xdist's default orders them by their number of tests, which put the few-test,
+# long files (test_reproduce.py 34 s, test_effect_open.py 25 s) among the last handed out, where one
+# worker can run alone.  Longest first, the short files fill in at the end.
+FILE_SECONDS = {
+    "test_discovery_open.py": 115.3,
+    "test_docs.py": 110.5,
+    "test_any_neck.py": 84.6,
+    "test_diagnosis_verdicts.py": 54.6,
+    "test_discovery.py": 46.2,
+    "test_identify.py": 41.6,
+    "test_discovery_cli.py": 37.0,
+    "test_reproduce.py": 34.0,
+    "test_effect_open.py": 25.1,
+    "test_identify_coverage.py": 22.3,
+    "test_figures.py": 21.8,
+    "test_typing.py": 20.7,
+    "test_simulate_any_neck.py": 16.1,
+    "test_output_error.py": 9.6,
+}
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Longest files first (:data:`FILE_SECONDS`), the others after them in collection order; the
+    tests of a file keep their order (a stable sort on the file's key)."""
+    first = {}
+    for i, item in enumerate(items):
+        first.setdefault(item.path.name, i)
+    items.sort(key=lambda item: (-FILE_SECONDS.get(item.path.name, 0.0), first[item.path.name]))
+
 
 @pytest.fixture
 def params():

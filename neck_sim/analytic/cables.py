@@ -84,21 +84,23 @@ def transmission_kernel(alpha: np.ndarray, geometry: np.ndarray, cases: np.ndarr
 
 
 def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
-              left_strut: bool = True) -> dict:
+              left_strut: bool = True, jl=None) -> dict:
     """Per-joint variable length of every segment kind, order -> array (..., K, N) (K kinds).
 
     Row k holds kind k of :mod:`neck_sim.params` (``SEG_*``; row 0, "not on this joint", is
     zero); order 0 is the length (m), 1 and 2 its first two alpha-derivatives.  Only the
     ``orders`` asked for are computed: Z needs order 1 alone, and skipping the corner geometry
-    of order 2 makes it several times cheaper; ``left_strut=False`` skips the mirror of case (d).
+    of order 2 makes it several times cheaper; ``left_strut=False`` skips the mirror of case (d);
+    ``jl``: :func:`~neck_sim.analytic.geometry._joint_local` of the same ``alpha``, when the caller
+    has it (the statics' Hessian needs the same corners).
     """
     want = set(orders)
     half = alpha / 2
     s, c = np.sin(half), np.cos(half)
-    sides = _side_terms(alpha, b, L)
+    sides = _side_terms(alpha, b, L) if jl is None else tuple(jl.sides)
     l_l, dl_l, ddl_l, l_r, dl_r, ddl_r = sides
     t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
-    if 2 in want:
+    if 2 in want and jl is None:
         jl = _joint_local(alpha, b, L, sides)
     out = {k: np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1])) for k in want}
     slopes = _segment_slopes(alpha, b, L, r, sides) if 1 in want else None
@@ -145,8 +147,8 @@ def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
     return seg[..., cases, np.arange(cases.shape[1])]
 
 
-def _evaluate(alpha: np.ndarray, params: NeckParams, orders) -> dict:
-    return _segments(alpha, *_geom(params), orders=orders, left_strut=_routing_terms(params)[2])
+def _evaluate(alpha: np.ndarray, params: NeckParams, orders, jl=None) -> dict:
+    return _segments(alpha, *_geom(params), orders=orders, left_strut=_routing_terms(params)[2], jl=jl)
 
 
 def _lengths(alpha: np.ndarray, params: NeckParams, seg0: np.ndarray) -> np.ndarray:

@@ -38,9 +38,9 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.cables import CableKinematics, cable_kinematics, cable_lengths
+from neck_sim.analytic.cables import CableKinematics, _evaluate, _lengths, _z, cable_kinematics, cable_lengths
 from neck_sim.analytic.dynamics import cable_tension, cap_elongation, gravity_spring_torque, static_elongation
-from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables
+from neck_sim.analytic.geometry import _joint_local, check_alpha, check_cables, check_pose
 from neck_sim.params import NeckParams
 
 __all__ = ["Equilibrium", "potential_hessian", "head_jacobian", "tension_slope", "tension_elongation",
@@ -81,10 +81,12 @@ def _rot_apply(c, s, v):
     return c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]
 
 
-def _chain(alpha: np.ndarray, params: NeckParams):
-    """Joint-local corners with derivatives, and cos/sin of the base-bar angles phi_i."""
+def _chain(alpha: np.ndarray, params: NeckParams, jl=None):
+    """Joint-local corners with derivatives (``jl`` when the caller has them), and cos/sin of the
+    base-bar angles phi_i."""
     g = params.geometry
-    jl = _joint_local(alpha, g.b, g.L)
+    if jl is None:
+        jl = _joint_local(alpha, g.b, g.L)
     phi = np.cumsum(alpha, -1) - alpha
     return jl, np.cos(phi), np.sin(phi)
 
@@ -94,10 +96,14 @@ def potential_hessian(alpha: npt.ArrayLike, params: NeckParams) -> np.ndarray:
 
     Its gradient is g(alpha) of eq (25) (:func:`~neck_sim.analytic.gravity_spring_torque`).
     """
+    return _potential_hessian(check_alpha(alpha, params.n_joints), params)
+
+
+def _potential_hessian(a: np.ndarray, params: NeckParams, jl=None) -> np.ndarray:
+    """:func:`potential_hessian` of checked angles; ``jl``: their joint-local corners, if known."""
     n = params.n_joints
-    a = check_alpha(alpha, params.n_joints)
     g, inert = params.geometry, params.inertia
-    jl, c, s = _chain(a, params)
+    jl, c, s = _chain(a, params, jl)
     A = np.array([-g.b / 2, 0.0])
     B = np.array([g.b / 2, 0.0])
     md, mb = inert.diagonal_mass, inert.bar_mass
@@ -190,21 +196,32 @@ def _check_theta(theta, params: NeckParams) -> np.ndarray:
     return check_cables(theta, params.n_cables, "theta")
 
 
+def _kinematics_and_hessian(a: np.ndarray, params: NeckParams) -> tuple[CableKinematics, np.ndarray]:
+    """``cable_kinematics(a, 1, params)`` and ``potential_hessian(a, params)`` from one pass over the
+    joints' corners (both need them; the Newton solvers evaluate this at every trial pose)."""
+    g = params.geometry
+    a = check_pose(a, params)
+    jl = _joint_local(a, g.b, g.L)
+    seg = _evaluate(a, params, (0, 1, 2), jl)
+    ck = CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params))
+    return ck, _potential_hessian(a, params, jl)
+
+
 def _force_terms(a, f, params):
-    ck = cable_kinematics(a, np.ones_like(a), params)
+    ck, H = _kinematics_and_hessian(a, params)
     r = gravity_spring_torque(a, params) - np.einsum("...ij,...j->...i", ck.Z, f)
-    K = potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, f)
+    K = H + _cable_curvature_term(ck.Zdot, f)
     return r, K, np.broadcast_to(f, r.shape[:-1] + f.shape[-1:])
 
 
 def _motor_terms(a, theta, params):
     """r, K_theta, t and, for :func:`held_pose`, the cable lengths and Z at ``a`` (computed anyway)."""
     act = params.actuation
-    ck = cable_kinematics(a, np.ones_like(a), params)
+    ck, H = _kinematics_and_hessian(a, params)
     x = ck.lengths + (act.r_d / act.R) * theta
     t = cable_tension(x, np.zeros_like(x), params)
     r = gravity_spring_torque(a, params) - np.einsum("...ij,...j->...i", ck.Z, t)
-    K = (potential_hessian(a, params) + _cable_curvature_term(ck.Zdot, t)
+    K = (H + _cable_curvature_term(ck.Zdot, t)
          + np.einsum("...ij,...j,...kj->...ik", ck.Z, tension_slope(x, params), ck.Z))
     return r, K, t, ck.lengths, ck.Z
 
