@@ -206,6 +206,7 @@ def _fake_data(params, rng, S=60):
         Z=an.transmission_matrix(alpha, params), x_dot=rng.normal(0, 5e-4, (S, C)),
         theta_fast=rng.normal(0, 2, (S, C)), theta_dot_fast=rng.normal(0, 20, (S, C)), to_slow=lambda v: v,
         motor_lowpass=lambda v: v,
+        prep=types.SimpleNamespace(rate_hz=100.0, cutoffs={"common": types.SimpleNamespace(hz=5.0)}),
         cached=cached)
     assert set(vars(d)) == PROTOCOL
     return d, rng.uniform(1e-3, 3e-3, (S, C))
