@@ -317,6 +317,13 @@ def test_resolved_stiffness_is_the_direction_the_row_sees_most():
     assert ratio == pytest.approx(norms.min() / norms.max(), rel=1e-4)
 
 
+def _hinge_named_on_its_joint_within_ten_percent(spec, diag):
+    assert diag.verdict == "joint_friction", diag.verdict
+    f = diag.findings[0]
+    assert f.joints == [spec.joints[0] + 1] and not f.cables
+    np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+
+
 @full_grid
 def test_hinge_friction_in_the_top_joint_is_named_and_located(blind10):
     """Seed 2 (frictionloss 0.046 N m in joint 10) on a 30.8 s log: named ``joint_friction`` on
@@ -324,10 +331,7 @@ def test_hinge_friction_in_the_top_joint_is_named_and_located(blind10):
     on its band leaves it ``unexplained`` (held-out p 0.0019 against 7.7e-4; named +7.5 % with the
     full band, which sized the low joints' hinges -41 % and +19 %: docs/your-own-neck.md section 7)."""
     spec, diag = blind10("joint_friction", 2, moves=16)
-    assert diag.verdict == "joint_friction", diag.verdict
-    f = diag.findings[0]
-    assert f.joints == [spec.joints[0] + 1] and not f.cables
-    np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+    _hinge_named_on_its_joint_within_ten_percent(spec, diag)
 
 
 @full_grid
@@ -338,10 +342,7 @@ def test_hinge_friction_in_a_low_joint_is_named_located_and_sized_on_a_sixty_sec
     full band, where the joint chatters under the camera's differentiated noise; -12 % with the
     plant's own speed, MuJoCo's friction constraint)."""
     spec, diag = blind10("joint_friction", SEED, moves=31)
-    assert diag.verdict == "joint_friction", diag.verdict
-    f = diag.findings[0]
-    assert f.joints == [spec.joints[0] + 1] and not f.cables
-    np.testing.assert_allclose(f.parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
+    _hinge_named_on_its_joint_within_ten_percent(spec, diag)
 
 
 @full_grid
