@@ -11,11 +11,11 @@ import numpy as np
 from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import (_refine_between, located_comparison, refined_shape, search_one_joint,
-                                              search_shape, shape_grid, trial_score)
+                                              search_shape, shape_grid, training_p, trial_score)
 from identification.diagnosis.materiality import candidate_decision, own_comparison
 from identification.diagnosis.support import log_support, separability_gap, unsupported_items
 from identification.diagnosis.statistics import (Comparison, block_scores, channel_wilcoxon_p, clearly_nonzero,
-                                                 explained_share, f_test_p, in_band, margin_ratio, score)
+                                                 explained_share, in_band, margin_ratio, score)
 
 
 @dataclass(frozen=True)
@@ -326,12 +326,9 @@ def one_cable_p_bound(ctx: StepContext, every) -> float:
     same shape, and a term passes only with that p below the candidate's level
     (:meth:`~identification.diagnosis.statistics.Comparison.significant`)."""
     s, term, fit = every
-    C = ctx.data.C
-    per_cable = max(1, (fit.n_params - ctx.base.fit.n_params) // C)
-    added = per_cable + len(term.shape) + 1
-    p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
-                 max(ctx.n_eff - ctx.base.fit.n_params - per_cable - added, 1))
-    return min(1.0, p * term.identification.places(dict(term.shape) | {"cable": 1}, ctx.data.n, C))
+    per_cable = max(1, (fit.n_params - ctx.base.fit.n_params) // ctx.data.C)
+    one = Term(term.name, tuple((dict(term.shape) | {"cable": 1.0}).items()))
+    return min(1.0, training_p(ctx, s, ctx.base.fit.n_params + per_cable, one))
 
 
 def search_one_cable_form(ctx: StepContext, trial, name: str, every):
@@ -363,7 +360,7 @@ def _scored(ctx: StepContext, best) -> CandidateScore:
     step ``ctx``: cross-validated, tested against the step's baseline, its separability."""
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
-    added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
+    added = ctx.added_params(fit.n_params, term)
     whole, channel_note = channel_holdout(ctx, ev, located_comparison(ctx.compare(ctx.base, ev, added), term,
                                                                        ctx.data.n, ctx.data.C), term)
     # a one-joint term is also measured where it acts (its joint's torque channel)

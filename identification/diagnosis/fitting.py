@@ -56,6 +56,11 @@ class StepContext:
         fit = self.fit(model, state)
         return Evaluated(fit, self.cross_validate(fit))
 
+    def added_params(self, n_params: int, term) -> int:
+        """Parameters a term adds over this step's baseline: the columns of a fit with ``n_params``
+        beyond the baseline's, and the term's shape keys (searched, so counted)."""
+        return n_params - self.base.fit.n_params + len(term.shape)
+
     def compare(self, ref: Evaluated, cand: Evaluated, added: int) -> Comparison:
         """``cand`` against ``ref`` (both of this step's split), ``added`` parameters more."""
         sc, split, n = self.scales, self.split, self.data.n

@@ -116,11 +116,18 @@ def located_train_p(ctx: StepContext, entry, bound: bool = True) -> float:
     stands for (:func:`located_comparison`); ``bound=False``: not capped at 1 (two forms that both
     fail are still ordered)."""
     s, term, fit = entry
-    added = fit.n_params - ctx.base.fit.n_params + len(term.shape)
-    p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), s, added,
-                 max(ctx.n_eff - fit.n_params - added, 1))
-    p *= term.identification.places(dict(term.shape), ctx.data.n, ctx.data.C)
+    p = training_p(ctx, s, fit.n_params, term)
     return min(1.0, p) if bound else p
+
+
+def training_p(ctx: StepContext, train_score: float, n_params: int, term: Term) -> float:
+    """The training F-test p against the step's baseline of a fit of ``term`` with ``n_params``
+    parameters and training score ``train_score``, times the tests ``term`` stands for
+    (``EffectColumns.places``); not capped at 1."""
+    added = ctx.added_params(n_params, term)
+    p = f_test_p(score(ctx.base.fit.residuals(), ctx.split.train, ctx.scales, ctx.data.n), train_score, added,
+                 max(ctx.n_eff - n_params - added, 1))
+    return p * term.identification.places(dict(term.shape), ctx.data.n, ctx.data.C)
 
 
 def located_comparison(comparison: Comparison, term: Term, n_joints: int, n_cables: int) -> Comparison:

@@ -131,7 +131,7 @@ def one_cable_pair(ctx: StepContext, a: CandidateScore, b: CandidateScore):
         if term == cand.term:
             return _Form(cand.term, cand.model, cand.added_params)
         ev = ctx.evaluate(ctx.base.fit.model.plus(term))
-        return _Form(term, ev, ev.fit.n_params - ctx.base.fit.n_params + len(term.shape))
+        return _Form(term, ev, ctx.added_params(ev.fit.n_params, term))
 
     try:
         return form(a, ta), form(b, tb), cable
