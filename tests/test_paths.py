@@ -251,6 +251,18 @@ def test_camera_angles_in_degrees_are_refused(tmp_path, capsys):
     assert code == 2 and "/neck/camera" in err and "angles look like degrees" in err and "alpha_max" in err
 
 
+def test_camera_angles_just_past_the_joint_range_are_not_called_degrees():
+    """1.8 rad on one joint (a simulated neck that bent past alpha_max): refused as outside the
+    joint range, and not mistaken for a log in degrees."""
+    from neck_sim.logs.contract import TOPIC_BY_NAME, check_plausible
+
+    a = _measured()
+    a["camera"]["alpha"][5, 1] = -1.8
+    with pytest.raises(LogError, match="alpha2 = -1.8 rad is outside the joint range") as info:
+        check_plausible(TOPIC_BY_NAME["camera"], a["camera"], default_params(3))
+    assert "bent past its joint range" in str(info.value) and "degrees" not in str(info.value)
+
+
 @pytest.mark.parametrize("kind", ["negative", "spike"])
 def test_out_of_range_forces_are_refused_or_accepted_and_reported(kind, tmp_path, capsys):
     a = _measured()

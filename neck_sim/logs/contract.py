@@ -276,7 +276,10 @@ def _angle_problem(spec: TopicSpec, t: np.ndarray, alpha: np.ndarray, params: Ne
         return None
     i, j = (int(v) for v in np.argwhere(bad)[0])
     worst = float(np.abs(alpha).max())
-    cause = ("angles look like degrees (the contract wants radians)" if worst <= math.degrees(limit)
+    # up to a half turn a joint angle in radians is still possible (a neck bent past its range);
+    # beyond it, values that would fit the range in degrees are most likely degrees
+    cause = ("the neck bent past its joint range (did the run leave the workspace?)" if worst <= math.pi
+             else "angles look like degrees (the contract wants radians)" if worst <= math.degrees(limit)
              else "these are not joint angles in radians (wrong column or units?)")
     return (f"{spec.topic}: sample {i} (t = {float(t[i]):.6g} s): {field_name}{j + 1} = {float(alpha[i, j]):.6g} rad "
             f"is outside the joint range |alpha| <= alpha_max = {alpha_max:.4g} rad (largest |value| {worst:.4g}): "
