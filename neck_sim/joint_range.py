@@ -54,6 +54,9 @@ class JointRangeError(RuntimeError):
         super().__init__(f"the neck left its joint range: {excursion.describe(with_time=False)}")
         self.excursion = excursion
 
+    def __reduce__(self):          # rebuilt from the excursion (other processes, pickling)
+        return type(self), (self.excursion,)
+
 
 def first_excursion(t: npt.ArrayLike, alpha: npt.ArrayLike, alpha_max: float) -> Excursion | None:
     """The first sample of ``alpha`` (T, N) rad at times ``t`` (T,) s with some |alpha_j| >
