@@ -190,9 +190,9 @@ def run(args: argparse.Namespace) -> int:
                 seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs,
                 controller=controller, plant_factory=factory, stop_outside_range=True)
         except RuntimeError as exc:
-            if _left_range(exc):
-                raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
             if controller != "computed-torque" or args.rigid_cables or params.n_joints < 6:
+                if _left_range(exc):
+                    raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
                 raise
             # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
             raise RuntimeError(f"{exc} (on elastic cables the paper's laws lose necks of 6 or more joints: "
