@@ -314,13 +314,15 @@ def check_plant_holds(path: ReachablePath, plant_params: NeckParams, elongation_
         why = (f"has no equilibrium in the joint range on the simulated plant with the motors held there (joint "
                f"{j + 1} heads to {np.degrees(eq.alpha[k, j]):.1f} deg)")
     elif not eq.stable[k]:
-        why = (f"is unstable on the simulated plant with the motors held there (its pose "
-               f"{_pose(eq.alpha[k])}, tensions {np.round(eq.tension[k], 1).tolist()} N)")
+        j = int(np.argmax(np.abs(np.linalg.eigh(eq.stiffness[k])[1][:, 0])))     # the softest mode's largest joint
+        why = (f"is unstable on the simulated plant with the motors held there (its unstable mode moves joint {j + 1} most; "
+               f"tensions {np.round(eq.tension[k], 1).tolist()} N)")
     else:
         c = int(np.argmax(eq.tension[k]))
         why = (f"needs {eq.tension[k, c]:.1f} N in cable c{c + 1} on the simulated plant, more than "
                f"{hi:g} N ({margin:g} f_max)")
-    raise ValueError(f"{where} {why}")
+    raise ValueError(f"{where} {why}: simulate a smaller effect (or, for a payload or springs, plan with the "
+                     "plant's values: they belong in the parameter file)")
 
 
 def _pose(alpha) -> str:

@@ -235,12 +235,14 @@ def test_a_plant_that_cannot_hold_the_path_is_refused_before_the_run(neck10):
     cannot hold is refused before any simulation, naming the pose and the cable."""
     path = make_run_trajectory("identification", neck10, "inverse-statics", 0.1, parse_effects(["payload=0.05"], neck10))
     assert path.duration > 9
-    for effect, words in (("payload=0.1", "unstable on the simulated plant"),
+    for effect, words in (("payload=0.1", "unstable on the simulated plant with the motors held there (its unstable "
+                                          "mode moves joint "),
                           ("pretension=0.002", "in cable c1 on the simulated plant, more than 90 N")):
         with pytest.raises(ValueError) as err:
             make_run_trajectory("identification", neck10, "inverse-statics", 0.1, parse_effects([effect], neck10))
         text = str(err.value)
         assert "\n" not in text and words in text and "t = 0.00 s" in text and "waypoint 'start" in text, text
+        assert "simulate a smaller effect" in text
 
 
 def test_a_run_that_leaves_the_joint_range_is_refused_and_writes_nothing(tmp_path, capsys, monkeypatch):
