@@ -315,8 +315,8 @@ def check_plant_holds(path: ReachablePath, plant_params: NeckParams, elongation_
                f"{j + 1} heads to {np.degrees(eq.alpha[k, j]):.1f} deg)")
     elif not eq.stable[k]:
         j = int(np.argmax(np.abs(np.linalg.eigh(eq.stiffness[k])[1][:, 0])))     # the softest mode's largest joint
-        why = (f"is unstable on the simulated plant with the motors held there (its unstable mode moves joint {j + 1} most; "
-               f"tensions {np.round(eq.tension[k], 1).tolist()} N)")
+        why = (f"is unstable on the simulated plant with the motors held there (its unstable mode moves joint "
+               f"{j + 1} most; tensions {np.round(eq.tension[k], 1).tolist()} N)")
     else:
         c = int(np.argmax(eq.tension[k]))
         why = (f"needs {eq.tension[k, c]:.1f} N in cable c{c + 1} on the simulated plant, more than "

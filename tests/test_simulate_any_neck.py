@@ -233,7 +233,8 @@ def test_a_plant_that_cannot_hold_the_path_is_refused_before_the_run(neck10):
     """The identification path is planned on the nominal model; a heavier payload (measured: the
     run at --duration-scale 0.1 leaves the range at 5.2 s with 0.1 kg) or a pretension the motors
     cannot hold is refused before any simulation, naming the pose and the cable."""
-    path = make_run_trajectory("identification", neck10, "inverse-statics", 0.1, parse_effects(["payload=0.05"], neck10))
+    light = parse_effects(["payload=0.05"], neck10)
+    path = make_run_trajectory("identification", neck10, "inverse-statics", 0.1, light)
     assert path.duration > 9
     for effect, words in (("payload=0.1", "unstable on the simulated plant with the motors held there (its unstable "
                                           "mode moves joint "),
