@@ -31,16 +31,17 @@ The metrics are the paper's (:mod:`controllers.run_result`).
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from controllers.computed_torque import (ComputedTorqueController, ControllerState, ControlStep, advance, control_rows,
                                         output_slices, reference_table, step_error)
+from controllers.loop_protocols import LoopController, LoopTrajectory
 from controllers.run_result import SLACK_TENSION, Metrics, RunResult, compute_metrics
 from neck_sim.batch import PlantBatch, clip_forces, delayed_controls
 from neck_sim.jit import kernel
+from neck_sim.joint_range import JointRangeError, first_excursion
 from neck_sim.live import active as active_live_view
 from neck_sim.native import DISPATCH, call_c
 from neck_sim.plant import Plant
@@ -50,45 +51,10 @@ from neck_sim.replay import plant_run_info
 if TYPE_CHECKING:
     from neck_sim.live import LiveView
     from neck_sim.logs import LogWriter
-    from neck_sim.params import NeckParams
 
 __all__ = ["SLACK_TENSION", "FUSE_PERIODS", "LOCKSTEP_GROUP", "Metrics", "RunResult", "run_closed_loop", "run_lockstep",
            "compute_metrics", "LoopController", "LoopTrajectory"]
 
-
-class LoopController(Protocol):
-    """What a closed-loop run asks of a controller: :class:`ComputedTorqueController` (the
-    compiled path), :class:`controllers.elastic_lqr.ElasticLQRController`,
-    :class:`controllers.underactuated.UnderactuatedController` or anything with their interface."""
-
-    @property
-    def params(self) -> NeckParams: ...
-
-    @property
-    def law(self) -> int: ...
-
-    def describe(self) -> str: ...
-
-    def motor_reference(self, sample: Any) -> Any: ...
-
-    def reset(self, alpha0: npt.ArrayLike | None = None, theta0: npt.ArrayLike | None = None) -> None: ...
-
-    def step(self, theta: npt.ArrayLike, ref: Any) -> ControlStep: ...
-
-
-class LoopTrajectory(Protocol):
-    """What a closed-loop run asks of a trajectory: :class:`controllers.trajectories.Trajectory`,
-    :class:`controllers.underactuated.ReachablePath` or anything with their interface."""
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def duration(self) -> float: ...
-
-    def sample(self, t: npt.ArrayLike) -> Any: ...
-
-    def check_workspace(self, params: NeckParams) -> None: ...
 
 # Run the periods between events (camera frames, failures) in one compiled call (_run_periods) when
 # every controller is compiled and every plant in a native PlantBatch.
@@ -157,17 +123,18 @@ def _log_writer(log_path: str | os.PathLike | None, plant: Any, run_info: dict) 
 
 def run_closed_loop(plant: Any, controller: LoopController, trajectory: LoopTrajectory, *,
                     log_path: str | os.PathLike | None = None, progress: bool = True, reset: bool = True,
-                    run_info: dict | None = None) -> RunResult:
+                    run_info: dict | None = None, stop_outside_range: bool = False) -> RunResult:
     """Run ``trajectory`` closed loop on ``plant`` with ``controller`` at the control rate.
 
     The plant (``neck_sim.plant.Plant`` or anything with its interface) and the controller are
     reset to the trajectory's first pose unless ``reset=False``.  ``log_path`` writes an MCAP log
     (atomically: nothing is left if the run fails).  ``progress`` shows a tqdm bar.  A controller
     failure (estimate outside the workspace, infeasible tensions) stops the run with RuntimeError
-    naming the time and the reason.
+    naming the time and the reason; so does, with ``stop_outside_range``, a neck that leaves its
+    joint range (:func:`run_lockstep`).
     """
     return run_lockstep([plant], [controller], [trajectory], log_paths=[log_path], progress=progress, reset=reset,
-                        run_infos=[run_info], stop_on_error=True)[0]
+                        run_infos=[run_info], stop_on_error=True, stop_outside_range=stop_outside_range)[0]
 
 
 LOCKSTEP_GROUP = 16      # runs advanced together at most; larger batches go group after group
@@ -177,7 +144,7 @@ def run_lockstep(plants: Sequence[Any], controllers: Sequence[LoopController],
                  trajectories: Sequence[LoopTrajectory], *,
                  log_paths: Sequence[str | os.PathLike | None] | None = None,
                  progress: bool = True, reset: bool = True, run_infos: Sequence[dict | None] | None = None,
-                 stop_on_error: bool = False) -> list:
+                 stop_on_error: bool = False, stop_outside_range: bool = False) -> list:
     """K independent closed-loop runs advanced together, period by period (lockstep batch).
 
     ``plants``, ``controllers``, ``trajectories`` (and ``log_paths``, ``run_infos``, default None)
@@ -193,6 +160,13 @@ def run_lockstep(plants: Sequence[Any], controllers: Sequence[LoopController],
     Returns one entry per run: its :class:`RunResult`, or (``stop_on_error=False``) the
     RuntimeError that stopped it (controller failure, diverged plant) while the others go on.
     With ``stop_on_error=True`` the first failure is raised.
+
+    ``stop_outside_range``: a run whose true joint angles leave |alpha| <= the plant's
+    ``geometry.alpha_max`` fails like a diverged plant, with a
+    :class:`neck_sim.joint_range.JointRangeError` naming the first such sample, and leaves no log
+    (refused, not flagged: outside the range the paper's model no longer describes the neck and
+    the log contract refuses the angles, so no later command could use the log).  The recorded
+    truth is checked every :data:`_MAX_FUSED` periods as one array operation, not per physics step.
     """
     plants, controllers, trajectories = list(plants), list(controllers), list(trajectories)
     K = len(plants)
@@ -210,9 +184,9 @@ def run_lockstep(plants: Sequence[Any], controllers: Sequence[LoopController],
             part = slice(g, g + LOCKSTEP_GROUP)
             out += run_lockstep(plants[part], controllers[part], trajectories[part], log_paths=log_paths[part],
                                 progress=progress, reset=reset, run_infos=run_infos[part],
-                                stop_on_error=stop_on_error)
+                                stop_on_error=stop_on_error, stop_outside_range=stop_outside_range)
         return out
-    run = _Lockstep(plants, controllers, trajectories, reset, stop_on_error)
+    run = _Lockstep(plants, controllers, trajectories, reset, stop_on_error, stop_outside_range)
     try:
         run.open(log_paths, run_infos)
         run.advance(progress)
@@ -231,7 +205,7 @@ class _Lockstep:
     :meth:`step`), and the results (:meth:`results`)."""
 
     def __init__(self, plants: list[Any], controllers: list[LoopController], trajectories: list[LoopTrajectory],
-                 reset: bool, stop_on_error: bool) -> None:
+                 reset: bool, stop_on_error: bool, stop_outside_range: bool = False) -> None:
         self.plants, self.controllers, self.trajectories = plants, controllers, trajectories
         self.stop_on_error, self.K = stop_on_error, len(plants)
         self.n = n = controllers[0].params.n_joints
@@ -267,6 +241,7 @@ class _Lockstep:
             self.status = self.state.status
         self.batch: PlantBatch | None = None
         self.writers: list[LogWriter | None] = [None] * self.K
+        self.range_checked = 0 if stop_outside_range else None     # periods checked; None: no check
 
     def open(self, log_paths: list[str | os.PathLike | None], run_infos: list[dict | None]) -> None:
         """The records, the plants' batch, the logs and the live view."""
@@ -316,6 +291,8 @@ class _Lockstep:
             self.kernel_args = self._kernel_args()
         k = 0
         while k < self.steps:
+            if self.range_checked is not None and k - self.range_checked >= _MAX_FUSED:
+                self.check_range(k)
             if self.live is not None and k - self.shown[0] >= self.live_every and self.alive[0]:
                 self.show(k)
             # stage: how much of period k is done (0 nothing, 1 recorded and controlled, 2 also stepped)
@@ -338,6 +315,7 @@ class _Lockstep:
             k += 1
             bar.update(1)
         bar.close()
+        self.check_range(self.steps)
         if self.live is not None and self.alive[0]:
             self.show(self.steps)
 
@@ -428,6 +406,18 @@ class _Lockstep:
         j = self.position.get(i)
         if j is not None and self.batch is not None and self.batch.active[j]:
             self.batch.stop(j, err)                     # the plant stops with its controller
+
+    def check_range(self, k1: int) -> None:
+        """Fail every live run whose true joint angles left the range in the periods recorded
+        since the last check, up to k1 (one vectorised test per run and block)."""
+        if self.range_checked is None:
+            return
+        rows, self.range_checked = slice(self.range_checked, k1), k1
+        for i in np.flatnonzero(self.alive).tolist():
+            out = first_excursion(self.rec.t[i, rows], self.rec.truth_column("alpha", i)[rows],
+                                  self.plants[i].params.geometry.alpha_max)
+            if out is not None:
+                self.fail(i, out.t, JointRangeError(out))
 
     def t_of(self, i: int, k: int) -> float:
         """Time of period k of run i (s)."""

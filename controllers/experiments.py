@@ -54,7 +54,7 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
                   rigid_cables: bool = False, controller_params: NeckParams | None = None,
                   controller_kwargs: Mapping | None = None,
                   plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None,
-                  controller: str = "computed-torque") -> dict[str, RunResult]:
+                  controller: str = "computed-torque", stop_outside_range: bool = False) -> dict[str, RunResult]:
     """Run each law on a fresh plant; returns ``{"law 1": RunResult, ...}``.
 
     ``controller="elastic-lqr"`` runs :class:`controllers.elastic_lqr.ElasticLQRController` (law 2's
@@ -68,8 +68,11 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
     ``log_path(label)`` gives each run's MCAP path (None: no log).  ``controller_kwargs`` go to
     every :class:`ComputedTorqueController` (e.g. ``t_min``, ``cable_model``, ``f_s``).
     ``plant_factory(params, rigid_cables, seed)`` replaces :class:`neck_sim.plant.Plant`.
+    ``stop_outside_range``: a run whose neck leaves its joint range stops with an error and writes
+    no log (:func:`controllers.closed_loop.run_lockstep`).
     """
     make = plant_factory or _make_plant
+    guard = {"stop_outside_range": stop_outside_range}
     model = params if controller_params is None else controller_params
     info = {"experiment": "control test", "seed": seed, "rigid_cables": rigid_cables}
     if controller == "elastic-lqr":
@@ -77,14 +80,14 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
         ctrl: LoopController = ElasticLQRController(model, **dict(controller_kwargs or {}))
         return {"elastic lqr": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
                                                log_path=log_path("elastic-lqr") if log_path else None,
-                                               run_info={**info, "controller": "elastic-lqr"})}
+                                               run_info={**info, "controller": "elastic-lqr"}, **guard)}
     if controller == "inverse-statics":
         from controllers.underactuated import UnderactuatedController
         ctrl = UnderactuatedController(model, **dict(controller_kwargs or {}))
         return {"inverse statics": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory,
                                                    progress=progress,
                                                    log_path=log_path("inverse-statics") if log_path else None,
-                                                   run_info={**info, "controller": "inverse-statics"})}
+                                                   run_info={**info, "controller": "inverse-statics"}, **guard)}
     if controller != "computed-torque":
         raise ValueError(f"controller: unknown {controller!r} (computed-torque, elastic-lqr, inverse-statics)")
     out = {}
@@ -93,16 +96,18 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
         ctrl = ComputedTorqueController(model, law, **dict(controller_kwargs or {}))
         out[label] = run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
                                      log_path=log_path(f"law{int(law)}") if log_path else None,
-                                     run_info=info)
+                                     run_info=info, **guard)
     return out
 
 
 def table3(params: NeckParams, trajectory: Trajectory | ReachablePath, law: int = 2, *,
            log_path: Callable[[str], str | None] | None = None, progress: bool = True, seed: int = 0,
            controller_kwargs: Mapping | None = None,
-           plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None) -> dict[tuple[str, bool], RunResult]:
+           plant_factory: Callable[[NeckParams, bool, int], Plant] | None = None,
+           stop_outside_range: bool = False) -> dict[tuple[str, bool], RunResult]:
     """The four runs of Table 3: plant ``rigid``/``identified`` cables x controller with/without
-    pulleys (``geometry.r = 0`` in the controller's model only; the plant always has them)."""
+    pulleys (``geometry.r = 0`` in the controller's model only; the plant always has them);
+    ``stop_outside_range`` as in :func:`control_tests`."""
     make = plant_factory or _make_plant
     bare = params.replace(**{"geometry.r": 0.0})
     out = {}
@@ -113,7 +118,7 @@ def table3(params: NeckParams, trajectory: Trajectory | ReachablePath, law: int 
         out[(plant_kind, pulleys)] = run_closed_loop(
             plant, ctrl, trajectory, progress=progress, log_path=log_path(label) if log_path else None,
             run_info={"experiment": "table 3", "plant_cables": plant_kind, "controller_pulleys": pulleys,
-                      "seed": seed})
+                      "seed": seed}, stop_outside_range=stop_outside_range)
     return out
 
 

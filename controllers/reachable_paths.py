@@ -27,7 +27,10 @@ equilibrium of every grid point, refused if one leaves the reachable set or is u
   co-contraction moves, so that every cable's motor reverses many times and its tension sweeps the
   stable range (friction from the reversals, k and lambda from the tension sweep);
 * :func:`check_holdable` -- refuse, before a run, a joint-space trajectory whose poses this neck
-  cannot hold, naming the pose and the cable.
+  cannot hold, naming the pose and the cable;
+* :func:`check_plant_holds` -- refuse, before a run, a path planned on the nominal model that the
+  simulated plant (with its ``--effect`` effects: a payload, weaker springs, a pretension) cannot
+  hold with the motors at the path's angles, naming the pose, the joint or the cable.
 
 Units: tensions N, angles rad (degrees only in messages and ``bend_deg``), times s.
 """
@@ -43,14 +46,14 @@ from controllers.trajectories import FORCE_MARGIN, HOLD_TIME, MOVE_TIME
 from controllers.underactuated import ReachablePath
 from neck_sim.analytic.cables import transmission_matrix
 from neck_sim.analytic.dynamics import gravity_spring_torque
-from neck_sim.analytic.statics import (equilibrium_for_forces, force_stiffness, head_jacobian, least_tensions,
-                                       motor_angles_for, motor_stiffness)
+from neck_sim.analytic.statics import (equilibrium_for_forces, equilibrium_for_motor_angles, force_stiffness,
+                                       head_jacobian, least_tensions, motor_angles_for, motor_stiffness)
 from neck_sim.cache import memo
 from neck_sim.params import NeckParams
 from neck_sim.trajectory import Trajectory
 
 __all__ = ["Pretension", "straight_pretension", "bending_directions", "largest_move", "shapes_tour",
-           "excitation_path", "check_holdable", "BEND_DEG", "LEVEL_STEP"]
+           "excitation_path", "check_holdable", "check_plant_holds", "BEND_DEG", "LEVEL_STEP"]
 
 BEND_DEG = 20.0
 """Largest joint angle (deg) a waypoint of :func:`shapes_tour` / :func:`excitation_path` may bend."""
@@ -277,6 +280,49 @@ def check_holdable(trajectory: Trajectory, params: NeckParams, *, margin: float 
             raise ValueError(f"{trajectory.name}: the pose at t = {t[k]:.2f} s, {_pose(alpha[k])}, is unstable with "
                              f"the motors held by the tensions that hold it ({np.round(tk, 1).tolist()} N; cable "
                              f"c{c + 1} carries the least): choose poses from the reachable set (--trajectory shapes)")
+
+
+def check_plant_holds(path: ReachablePath, plant_params: NeckParams, elongation_offset: npt.ArrayLike | None = None,
+                      *, margin: float = FORCE_MARGIN) -> None:
+    """Refuse (ValueError) a path planned on the controller's model (``path.params``) that the plant
+    ``plant_params`` (the model with the run's effects applied) cannot hold statically.
+
+    At every grid point of the path the motors are held at the angles the controller commands
+    there (the model's inverse statics, ``theta_d``) and the plant's static pose is solved from the
+    planned pose (eq 30 at rest, elastic cables of eq 54, ``elongation_offset`` (m) per cable added
+    to every elongation, a pretension).  Refused: no equilibrium in the joint range, one that is
+    unstable with the motors held, or one whose tension exceeds ``margin`` f_max (the motor
+    saturates).  Static only: a fast path can still swing the plant out of its range.
+    """
+    model, t = path.params, path.grid_t
+    theta = motor_angles_for(path.grid_alpha, path.forces_at(t), model)
+    if elongation_offset is not None:
+        theta = theta + np.asarray(elongation_offset, dtype=float) * model.actuation.R / model.actuation.r_d
+    eq = equilibrium_for_motor_angles(theta, plant_params, path.grid_alpha)
+    hi = margin * plant_params.actuation.f_max
+    over = eq.tension > hi
+    bad = ~eq.converged | ~eq.stable | over.any(-1)
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    labels = getattr(path, "labels", None)
+    w = min(len(path.waypoints) - 1, int(np.searchsorted(path.knots, t[k], side="right")) // 2)
+    where = (f"{path.name}: the pose planned at t = {t[k]:.2f} s ({_pose(path.grid_alpha[k])}, "
+             + (f"towards waypoint {labels[w]!r}" if labels else f"towards waypoint {w}") + ")")
+    if not eq.converged[k]:
+        j = int(np.argmax(np.abs(eq.alpha[k])))
+        why = (f"has no equilibrium in the joint range on the simulated plant with the motors held there (joint "
+               f"{j + 1} heads to {np.degrees(eq.alpha[k, j]):.1f} deg)")
+    elif not eq.stable[k]:
+        j = int(np.argmax(np.abs(np.linalg.eigh(eq.stiffness[k])[1][:, 0])))     # the softest mode's largest joint
+        why = (f"is unstable on the simulated plant with the motors held there (its unstable mode moves joint "
+               f"{j + 1} most; tensions {np.round(eq.tension[k], 1).tolist()} N)")
+    else:
+        c = int(np.argmax(eq.tension[k]))
+        why = (f"needs {eq.tension[k, c]:.1f} N in cable c{c + 1} on the simulated plant, more than "
+               f"{hi:g} N ({margin:g} f_max)")
+    raise ValueError(f"{where} {why}: simulate a smaller effect (or, for a payload or springs, plan with the "
+                     "plant's values: they belong in the parameter file)")
 
 
 def _pose(alpha) -> str:

@@ -23,6 +23,7 @@ from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
     from controllers.underactuated import ReachablePath
+    from neck_sim.effects import Effects
     from neck_sim.trajectory import Trajectory
 
 __all__ = ["CONTROLLERS", "TRAJECTORY_NAMES", "LQR_FROM_JOINTS", "PLANT_TIMESTEP", "Choice", "choose_controller",
@@ -101,8 +102,8 @@ def choose_controller(params: NeckParams, requested: str | None = None, *, laws:
                                      f"N = {n}, {m} cables)")
 
 
-def make_run_trajectory(name: str | None, params: NeckParams, controller: str,
-                        duration_scale: float = 1.0) -> Trajectory | ReachablePath:
+def make_run_trajectory(name: str | None, params: NeckParams, controller: str, duration_scale: float = 1.0,
+                        effects: Effects | None = None) -> Trajectory | ReachablePath:
     """The trajectory ``name`` (None: the controller's default) for ``controller`` on ``params``.
 
     The paper's laws run the §7 and §5.2.2 trajectories scaled to the force limits
@@ -110,6 +111,12 @@ def make_run_trajectory(name: str | None, params: NeckParams, controller: str,
     default, its own identification experiment, or a joint-space trajectory it has checked
     (:func:`controllers.reachable_paths.check_holdable`).  ValueError before any simulation when
     the neck cannot follow it.
+
+    ``effects``: the plant's (``simulate --effect``).  ``inverse-statics`` plans on ``params`` (its
+    model) and then checks the path on the plant those effects make, statically
+    (:func:`controllers.reachable_paths.check_plant_holds`, :func:`~controllers.reachable_paths.check_holdable`
+    with the plant's constants); the paper's laws, whose feedback supplies the torque the plant
+    needs, are not checked here.
     """
     if name is not None and name not in TRAJECTORY_NAMES:
         raise ValueError(f"--trajectory {name}: unknown (known: {', '.join(TRAJECTORY_NAMES)})")
@@ -120,12 +127,17 @@ def make_run_trajectory(name: str | None, params: NeckParams, controller: str,
         from controllers.trajectories import make_trajectory
         return make_trajectory(name or "control-test", params, duration_scale)
     from controllers import reachable_paths as rp
-    if name in (None, "shapes"):
-        return rp.shapes_tour(params, duration_scale)
-    if name == "identification":
-        return rp.excitation_path(params, duration_scale)
+    plant = params if effects is None else effects.true_params(params)
+    offset = None if effects is None else effects.elongation_offset(params.n_cables)
+    if name in (None, "shapes", "identification"):
+        path = (rp.excitation_path if name == "identification" else rp.shapes_tour)(params, duration_scale)
+        if plant != params or (offset is not None and offset.any()):
+            rp.check_plant_holds(path, plant, offset)
+        return path
     from neck_sim.trajectory import scaled_trajectory as joint_trajectory
     traj = joint_trajectory(name, params, duration_scale)
     traj.check_workspace(params)
     rp.check_holdable(traj, params)
+    if plant != params:
+        rp.check_holdable(traj, plant)
     return traj

@@ -35,17 +35,23 @@ of the paper's model are recomputed with :mod:`neck_sim.analytic`:
 
 The model's constants are the plant's (the ``run`` record's ``plant_params`` with its effects
 applied) when the log has them, else the nominal ``neck`` record.
+
+A log whose true joint angles leave |alpha| <= alpha_max is refused (ValueError naming the first
+such sample and the command that wrote the log): the relations are the paper's model, which does
+not hold there.  ``neck-sim simulate`` no longer writes such logs.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from neck_sim.analytic import cable_lengths, linkage_dynamics, transmission_matrix
 from neck_sim.effects import Effects
+from neck_sim.joint_range import first_excursion
 from neck_sim.logs import Log, read_log
 from neck_sim.params import NeckParams
 from neck_sim.plant_spec import PlantSpec
@@ -118,6 +124,16 @@ def _model(log: Log) -> tuple[NeckParams, Effects, bool, str]:
     return spec.effects.true_params(spec.params), spec.effects, spec.rigid_cables, source
 
 
+def _written_by(log: Log) -> str:
+    """" (written by `neck-sim simulate ...`)" from the run record's command line, "" without one."""
+    cmd = log.run_value("command_line")
+    if not isinstance(cmd, list) or not cmd or str(cmd[0]) in ("", "-c"):
+        return ""
+    first = str(cmd[0])
+    prog = "neck-sim" if os.path.basename(first) in ("neck-sim", "__main__.py") else first
+    return f" (written by `{' '.join([prog, *map(str, cmd[1:])])}`)"
+
+
 def _worst(err: np.ndarray, tol, t: np.ndarray, name, description, unit, tol_value) -> Relation:
     """Relation from per-sample errors (T, K) and tolerance broadcastable to it."""
     ratio = np.abs(err) / tol
@@ -135,6 +151,11 @@ def check_log(log: Log | str) -> CheckResult:
         raise ValueError(f"{log.path}: no /neck/truth samples: check needs a simulated log")
     params, effects, rigid, source = _model(log)
     tr, mo = log.truth, log.motors
+    out = first_excursion(tr.t, tr.alpha, params.geometry.alpha_max)
+    if out is not None:
+        raise ValueError(f"{log.path}: /neck/truth: {out.describe()}: the simulated neck left its joint range, where "
+                         f"the paper's model (and so this check) does not hold{_written_by(log)}; simulate it again "
+                         "with slower moves or a lighter plant (`neck-sim simulate` refuses such runs)")
     if mo is None:
         raise ValueError(f"{log.path}: no /neck/motors samples: check needs the motor angles")
     common, it, im = np.intersect1d(np.round(tr.t * 1e9).astype(np.int64), np.round(mo.t * 1e9).astype(np.int64),

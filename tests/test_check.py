@@ -106,3 +106,37 @@ def test_check_needs_truth(tmp_path, capsys):
     write_arrays(tmp_path / "m.mcap", p, {"motors": arrays["motors"]})
     assert main(["check", str(tmp_path / "m.mcap")]) == 2
     assert "missing required topic /neck/truth" in capsys.readouterr().err
+
+
+def test_a_log_whose_neck_left_its_range_is_refused_in_words_for_the_command_line(plant_log, tmp_path, capsys):
+    """The check names the first sample out of range and what a user can do, never a Python keyword."""
+    from neck_sim.joint_range import first_excursion
+
+    def bend(x):
+        x[300:, 1] = np.radians(93.0)
+        x[420, 0] = np.radians(-95.0)
+        return x
+    bad = tampered(plant_log, tmp_path / "bent.mcap", "truth", "alpha", bend)
+    truth = read_log(bad, topics=["truth"], require=["truth"]).truth
+    first = first_excursion(truth.t, truth.alpha, default_params(3).geometry.alpha_max)
+    assert main(["check", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "allow_outside_range" not in err, err
+    assert f"joint 2 at 93.00 deg at t = {truth.t[300]:.3f} s" in err and first.sample == 300
+    assert "left its joint range" in err and "neck-sim simulate" in err
+
+
+def test_the_command_line_words_the_model_range_error_without_the_python_keyword(plant_log, capsys, monkeypatch):
+    """Any command whose model evaluation meets a pose out of range (here check, made to) says so
+    without `allow_outside_range=True`, which the Python API's message keeps."""
+    import neck_sim.check
+    from neck_sim.analytic.geometry import PoseRangeError, check_alpha
+
+    def out_of_range(log):
+        check_alpha([[0.0, 1.7, 0.0]], 3, alpha_max=default_params(3).geometry.alpha_max)
+    monkeypatch.setattr(neck_sim.check, "check_log", out_of_range)
+    assert main(["check", str(plant_log)]) == 2
+    err = capsys.readouterr().err
+    assert "joint 2 at 97.40 deg" in err and "allow_outside_range" not in err and err.count("\n") == 1, err
+    with pytest.raises(PoseRangeError, match=r"pass allow_outside_range=True"):
+        out_of_range(None)

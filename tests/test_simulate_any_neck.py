@@ -208,3 +208,82 @@ def test_cable_excitation_on_known_arrays():
     np.testing.assert_allclose(ex.speed_max, [2 * np.pi, 3.0], rtol=1e-4)
     np.testing.assert_allclose(ex.tension_min, [10 + 5 * np.cos(np.pi), 7.0], atol=1e-5)
     np.testing.assert_allclose(ex.tension_max, [10 + 5 * np.cos(1.0), 7.0], atol=1e-5)
+
+
+def test_the_first_excursion_is_the_sample_check_alpha_names():
+    """neck_sim.joint_range against the model's own range check (another computation: argwhere
+    over the flattened array in check_alpha)."""
+    from neck_sim.analytic.geometry import PoseRangeError, check_alpha
+    from neck_sim.joint_range import first_excursion
+
+    rng = np.random.default_rng(3)
+    alpha = rng.uniform(-1.4, 1.4, (300, 10))
+    alpha[170, 7], alpha[171, 2], alpha[250, 0] = -1.6, 1.7, np.nan
+    t = np.arange(300) * 0.002
+    out = first_excursion(t, alpha, 1.5)
+    with pytest.raises(PoseRangeError) as err:
+        check_alpha(alpha[:250], 10, alpha_max=1.5)
+    assert f"joint {out.joint + 1} at {np.degrees(out.angle):.2f} deg (index ({out.sample}, {out.joint}))" \
+        in str(err.value)
+    assert out.t == pytest.approx(0.34) and first_excursion(t[:170], alpha[:170], 1.5) is None
+    assert first_excursion(t[172:], alpha[172:], 1.5).sample == 250 - 172          # NaN: out of range
+
+
+def test_a_plant_that_cannot_hold_the_path_is_refused_before_the_run(neck10):
+    """The identification path is planned on the nominal model; a heavier payload (measured: the
+    run at --duration-scale 0.1 leaves the range at 5.2 s with 0.1 kg) or a pretension the motors
+    cannot hold is refused before any simulation, naming the pose and the cable."""
+    light = parse_effects(["payload=0.05"], neck10)
+    path = make_run_trajectory("identification", neck10, "inverse-statics", 0.1, light)
+    assert path.duration > 9
+    for effect, words in (("payload=0.1", "unstable on the simulated plant with the motors held there (its unstable "
+                                          "mode moves joint "),
+                          ("pretension=0.002", "in cable c1 on the simulated plant, more than 90 N")):
+        with pytest.raises(ValueError) as err:
+            make_run_trajectory("identification", neck10, "inverse-statics", 0.1, parse_effects([effect], neck10))
+        text = str(err.value)
+        assert "\n" not in text and words in text and "t = 0.00 s" in text and "waypoint 'start" in text, text
+        assert "simulate a smaller effect" in text
+
+
+def test_a_run_that_leaves_the_joint_range_is_refused_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    """With 50 g at the head the 10x4 neck's fast identification run swings joint 6 past 90 deg
+    (dynamic: the plant's statics along the path stay within 21 deg and 84 N): refused in one
+    line, exit 2, no log."""
+    import re
+
+    from neck_sim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    save(example_params("neck10x4"), tmp_path / "p10.toml")
+    assert main(["simulate", "--params", "p10.toml", "--trajectory", "identification", "--effect", "payload=0.05",
+                 "--duration-scale", "0.1", "--no-progress", "-o", "run.mcap", "--json", "m.json"]) == 2
+    err = capsys.readouterr().err
+    found = re.search(r"stopped at t = ([\d.]+) s: the neck left its joint range: joint (\d+) at (-?[\d.]+) deg, "
+                      r"outside the joint range \|alpha\| <= 90.00 deg", err)
+    assert found and err.count("\n") == 1, err
+    assert abs(float(found.group(3))) > 90 and 1 <= int(found.group(2)) <= 10
+    assert "--duration-scale than 0.1" in err and "payload=0.05" in err
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["p10.toml"]
+
+
+def test_the_range_guard_leaves_a_run_in_range_unchanged(tmp_path):
+    """The paper's neck, default run: the command's log (guard on) equals, array for array, the log
+    the Python API writes for the same run without the guard."""
+    from controllers import experiments as ex
+    from neck_sim.cli import main
+    from neck_sim.logs.reader import read_log
+
+    guarded, plain = tmp_path / "guarded.mcap", tmp_path / "plain.mcap"
+    assert main(["simulate", "--duration-scale", "0.1", "--no-progress", "-o", str(guarded)]) == 0
+    p = default_params(3)
+    ex.control_tests(p, make_run_trajectory(None, p, "computed-torque", 0.1), [2], progress=False,
+                     log_path=lambda label: str(plain), stop_outside_range=False)
+    from dataclasses import fields
+
+    a, b = read_log(guarded), read_log(plain)
+    for topic in ("motors", "camera", "reference", "estimate", "truth"):
+        x, y = getattr(a, topic), getattr(b, topic)
+        assert x is not None and len(x.t) > 40, topic
+        for f in fields(x):
+            np.testing.assert_array_equal(getattr(x, f.name), getattr(y, f.name), err_msg=f"{topic}.{f.name}")

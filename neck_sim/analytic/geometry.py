@@ -48,7 +48,17 @@ def _check_last_axis(arr, size: int, name: str, what: str) -> np.ndarray:
 
 
 class PoseRangeError(ValueError):
-    """Joint angles outside |alpha| <= ``geometry.alpha_max``, where the model is not valid."""
+    """Joint angles outside |alpha| <= ``geometry.alpha_max``, where the model is not valid.
+
+    ``problem`` is the message without the advice to Python callers (the command line words its own).
+    """
+
+    def __init__(self, problem: str) -> None:
+        super().__init__(f"{problem}; pass allow_outside_range=True to evaluate the model there")
+        self.problem = problem
+
+    def __reduce__(self):          # rebuilt from the problem alone (other processes, pickling)
+        return type(self), (self.problem,)
 
 
 def check_alpha(alpha: npt.ArrayLike, n_joints: int, name: str = "alpha", alpha_max: float | None = None) -> np.ndarray:
@@ -61,8 +71,7 @@ def check_alpha(alpha: npt.ArrayLike, n_joints: int, name: str = "alpha", alpha_
         idx = tuple(int(i) for i in np.argwhere(np.abs(a) > alpha_max)[0])
         raise PoseRangeError(
             f"{name}: joint {idx[-1] + 1} at {np.degrees(a[idx]):.2f} deg (index {idx}) is outside the joint "
-            f"range |alpha| <= {np.degrees(alpha_max):.2f} deg (geometry.alpha_max); "
-            "pass allow_outside_range=True to evaluate the model there")
+            f"range |alpha| <= {np.degrees(alpha_max):.2f} deg (geometry.alpha_max)")
     return a
 
 

@@ -235,6 +235,10 @@ def _user_error(name: str, exc: BaseException) -> int:
     text: str | BaseException = exc
     if isinstance(exc, OSError) and exc.filename and exc.strerror:      # "[Errno 2] ...: 'x'" -> "x: ..."
         text = f"{exc.filename}: {exc.strerror}"
+    geometry = sys.modules.get("neck_sim.analytic.geometry")      # loaded whenever its PoseRangeError was raised
+    if geometry is not None and isinstance(exc, geometry.PoseRangeError):      # its own text advises Python callers
+        text = (f"{exc.problem}: the paper's model does not hold there (a simulated run that left its workspace, "
+                "which `neck-sim simulate` refuses)")
     print(f"{name}: error: {one_line(text)}", file=sys.stderr)
     return 2
 

@@ -1,5 +1,15 @@
 """`neck-sim simulate`: the paper's control tests (§6.3, §7) and Table 3 on the simulated plant, and
-any neck of any routing moved by a controller that can move it (:mod:`controllers.selection`)."""
+any neck of any routing moved by a controller that can move it (:mod:`controllers.selection`).
+
+A run whose neck leaves its joint range |alpha| <= alpha_max is refused, never logged: before the
+run when the statics of the plant (with its ``--effect`` effects) already say so
+(:func:`controllers.reachable_paths.check_plant_holds`, for ``inverse-statics``), else during it,
+at the first recorded sample out of range (``stop_outside_range`` of
+:func:`controllers.closed_loop.run_lockstep`), with one line naming the time, the joint and the
+angle, exit status 2 and no log.  Refused rather than logged under a flag: outside the range the
+paper's model no longer describes the neck, the log contract refuses such angles and
+``neck-sim check`` cannot evaluate them, so the log would serve no later command.
+"""
 
 from __future__ import annotations
 
@@ -98,6 +108,18 @@ def _check_options(args, controller: str) -> None:
         raise ValueError("--table3 runs one law (give a single --law)")
 
 
+def _left_range(exc: RuntimeError) -> str:
+    """The message of a run stopped because its neck left the joint range; "" for any other failure."""
+    from neck_sim.joint_range import JointRangeError
+    return str(exc) if isinstance(exc.__cause__, JointRangeError) else ""
+
+
+def _what_to_do(args) -> str:
+    lighter = f"smaller --effect values than {' '.join(args.effect)}, " if args.effect else ""
+    return (f"; no log written: try {lighter}slower moves (a larger --duration-scale than {args.duration_scale:g}) "
+            "or another --trajectory")
+
+
 def _plant_factory(effects, timestep):
     """Plants with the ``--effect`` effects and the controller's physics timestep (None: the
     default plant)."""
@@ -134,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     lqr = controller == "elastic-lqr"
     laws = args.law or [2]
     name = args.trajectory or ("identification" if args.table3 else None)
-    traj = make_run_trajectory(name, params, controller, args.duration_scale)
+    traj = make_run_trajectory(name, params, controller, args.duration_scale, effects if effects.active() else None)
     name = name or traj.name.split(" ")[0]
     kwargs = {}
     if args.t_min is not None:
@@ -147,8 +169,14 @@ def run(args: argparse.Namespace) -> int:
           + ("" if params.n_cables == params.n_joints + 1 else f", {params.n_cables} cables"))
 
     if args.table3:
-        results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,
-                            seed=args.seed, controller_kwargs=kwargs, plant_factory=factory)
+        try:
+            results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,
+                                seed=args.seed, controller_kwargs=kwargs, plant_factory=factory,
+                                stop_outside_range=True)
+        except RuntimeError as exc:
+            if _left_range(exc):
+                raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
+            raise
         labelled = {f"{kind} cables, {'pulleys' if pul else 'no pulleys'}": res for (kind, pul), res in results.items()}
         print(ex.format_control_table(labelled, compare_with_paper=False))
         print()
@@ -160,9 +188,11 @@ def run(args: argparse.Namespace) -> int:
             labelled = ex.control_tests(
                 params, traj, laws, log_path=_log_namer(args, name, several), progress=progress,
                 seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs,
-                controller=controller, plant_factory=factory)
+                controller=controller, plant_factory=factory, stop_outside_range=True)
         except RuntimeError as exc:
             if controller != "computed-torque" or args.rigid_cables or params.n_joints < 6:
+                if _left_range(exc):
+                    raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
                 raise
             # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
             raise RuntimeError(f"{exc} (on elastic cables the paper's laws lose necks of 6 or more joints: "
