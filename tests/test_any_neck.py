@@ -681,3 +681,11 @@ def test_a_step_of_look_alikes_is_reported_as_alternatives():
         "columns are 14.7 deg apart after the baseline (about the coefficient of variation of cable 1's tension while "
         "it moves: tan 14.7 deg = 0.26); a recording where that tension varies by a CV of about 0.51 (columns 27 deg "
         "apart) would separate them"]
+    # two laws that do not differ by the tension: the angles only
+    import dataclasses
+
+    other = Step(None, None, (), ["dry_friction", "viscous_friction"], object(),
+                 (dataclasses.replace(angled.pairwise[0], b="viscous_friction", needed=(21.0, 1.6)),))
+    assert look_alike_lines(SimpleNamespace(steps=(other,)))[0].endswith(
+        "improvement; their columns are 14.7 deg apart after the baseline; a recording where they are 21 deg apart "
+        "would separate them, or a log about 1.6 times as long")
