@@ -60,41 +60,11 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
 
 
 def look_alike_lines(diag) -> list[str]:
-    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, not effects
-    found together; when they were compared on one cable, what recording would separate them."""
+    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, and what would separate them."""
     return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together{getattr(st, 'look_alike_where', '')} neither "
             f"adds to the other, so this log supports one of them and cannot tell which; {st.verdict[0]} has the larger "
-            f"cross-validated improvement{_separating_text(getattr(st, 'separation', None))}"
+            f"cross-validated improvement{getattr(getattr(st, 'separation', None), 'separating_text', str)()}"
             for i, st in enumerate(diag.steps) if st.chosen is not None and isinstance(st.verdict, list)]
-
-
-def _separating_text(test) -> str:
-    """What would separate two laws compared on one cable (``selection.separating_angle``): their
-    columns' angle after the baseline, the angle that would do and the log length that would at
-    today's angle.  When one law is on the tension and the other not (pulley against dry friction)
-    the angle's tangent is about the cable's tension CV while it moves, and the line says so."""
-    if test is None:
-        return ""
-    from identification.diagnosis.columns import get
-
-    tension = get(test.a).uses_tension != get(test.b).uses_tension
-    a = test.angle_deg
-    text = f"; their columns are {a:.1f} deg apart after the baseline"
-    if tension:
-        text += (f" (about the coefficient of variation of cable {test.cable}'s tension while it moves: "
-                 f"tan {a:.1f} deg = {math.tan(math.radians(a)):.2f})")
-    angle, length = test.needed
-    adds = test.a_adds_to_b
-    if angle is None and adds is not None and adds.improvement > 0 and max(adds.p_holdout, adds.p_train) < 0.5:
-        return text + ", and no recording on that cable would separate them at this friction and noise"
-    if angle is None:
-        return text + f"; {test.a} adds nothing to {test.b} here, so this log does not say what would separate them"
-    if tension:
-        text += (f"; a recording where that tension varies by a CV of about {math.tan(math.radians(angle)):.2f} "
-                 f"(columns {angle:.0f} deg apart) would separate them")
-    else:
-        text += f"; a recording where they are {angle:.0f} deg apart would separate them"
-    return text + (f", or a log about {length:.1f} times as long" if length is not None else "")
 
 
 def format_summary(diag) -> str:

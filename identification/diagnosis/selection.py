@@ -88,6 +88,34 @@ class EncompassingTest:
         return {"a": self.a, "b": self.b, **where, "b_adds_to_a": side(self.b_adds_to_a, self.b_adds),
                 "a_adds_to_b": side(self.a_adds_to_b, self.a_adds), "a_adds": self.a_adds, "b_adds": self.b_adds}
 
+    def separating_text(self) -> str:
+        """The report's clause on what would separate the two laws (:func:`separating_angle`): their
+        columns' angle after the baseline, the angle that would do and the log length that would at
+        today's angle.  When one law is on the tension and the other not (pulley against dry
+        friction) the angle's tangent is about the cable's tension CV while it moves, and it says so."""
+        if self.angle_deg is None:
+            return ""
+        from identification.diagnosis.columns import get
+
+        tension = get(self.a).uses_tension != get(self.b).uses_tension
+        a = self.angle_deg
+        text = f"; their columns are {a:.1f} deg apart after the baseline"
+        if tension:
+            text += (f" (about the coefficient of variation of cable {self.cable}'s tension while it moves: "
+                     f"tan {a:.1f} deg = {math.tan(math.radians(a)):.2f})")
+        angle, length = self.needed
+        adds = self.a_adds_to_b
+        if angle is None and adds is not None and adds.improvement > 0 and max(adds.p_holdout, adds.p_train) < 0.5:
+            return text + ", and no recording on that cable would separate them at this friction and noise"
+        if angle is None:
+            return text + f"; {self.a} adds nothing to {self.b} here, so this log does not say what would separate them"
+        if tension:
+            text += (f"; a recording where that tension varies by a CV of about {math.tan(math.radians(angle)):.2f} "
+                     f"(columns {angle:.0f} deg apart) would separate them")
+        else:
+            text += f"; a recording where they are {angle:.0f} deg apart would separate them"
+        return text + (f", or a log about {length:.1f} times as long" if length is not None else "")
+
 
 @dataclass(frozen=True, eq=False)
 class _Form:
