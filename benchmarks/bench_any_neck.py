@@ -28,6 +28,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
     python benchmarks/bench_any_neck.py --detection --moves 16 --cases spring_error none   # 30.8 s logs
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
+    python benchmarks/bench_any_neck.py --detection --seeds 1 2 3 --cases dry_friction --look-alikes --travel
 """
 
 from __future__ import annotations
@@ -66,7 +67,8 @@ DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction":
              "actuation_delay": 1.0}
 
 
-def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
+def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bool = False,
+              travel: bool = False) -> None:
     from open_world.generator import make_spec, simulate_reachable
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -99,6 +101,13 @@ def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
                   f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}",
                   flush=True)
+            if travel and name == "dry_friction" and diag.findings:
+                print(f"    {_travel_line(diag, spec)}", flush=True)
+            if look_alikes:
+                from identification.diagnosis.report import look_alike_lines
+
+                for line in look_alike_lines(diag):
+                    print(f"    {line}", flush=True)
 
 
 def _candidate_fit(diag, spec) -> str:
@@ -125,6 +134,20 @@ def _candidate_fit(diag, spec) -> str:
         return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
                 f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")
     return ""
+
+
+def _travel_line(diag, spec) -> str:
+    """A named dry friction's f_travel (``columns/dry_friction.travel_mean_friction``) on the hidden
+    cable against the hidden law's own mean force per unit of travel over the same encoder speeds
+    (the generator's F tanh(theta_dot / 0.3), written here, not the candidate's law)."""
+    cable = spec.cables[0]
+    got = diag.findings[0].parameters.get(f"f_travel({cable + 1})")
+    if got is None:
+        return "f_travel: not reported"
+    v = np.abs(diag.data.theta_dot_fast[:, cable])
+    hidden = float(np.sum(spec.magnitude * np.tanh(v / 0.3) * v) / np.sum(v))
+    return (f"f_travel({cable + 1}) {got.value:.4g} +- {got.sigma:.2g} N, the hidden law's over the same speeds "
+            f"{hidden:.4g} N ({100 * (got.value / hidden - 1):+.1f} %)")
 
 
 def _resolved_pair(path: str, diag, spec) -> str:
@@ -167,6 +190,10 @@ def main(argv=None) -> int:
                     help="--detection: waypoint moves per log (8: 15.6 s, the tests' logs; 16: 30.8 s, the "
                          "one-joint spring's test log; 31: 59.3 s)")
     ap.add_argument("--cases", nargs="+", choices=sorted(DETECTION), help="--detection: only these cases")
+    ap.add_argument("--look-alikes", action="store_true",
+                    help="--detection: print the report's look-alike lines (alternatives, what would separate them)")
+    ap.add_argument("--travel", action="store_true",
+                    help="--detection: for dry friction, print f_travel against the hidden law's travel mean")
     args = ap.parse_args(argv)
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -177,7 +204,7 @@ def main(argv=None) -> int:
     directory = args.dir or tmp.name
     os.makedirs(directory, exist_ok=True)
     if args.detection:
-        detection(directory, args.seeds, args.moves, args.cases)
+        detection(directory, args.seeds, args.moves, args.cases, args.look_alikes, args.travel)
         if tmp is not None:
             tmp.cleanup()
         return 0

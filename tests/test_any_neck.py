@@ -191,30 +191,103 @@ def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
     np.testing.assert_allclose(diag.findings[0].parameters[spec.symbol].value, spec.magnitude, rtol=0.10)
 
 
-#: Extra dry friction on one cable, 15.6 s logs: (named alone, size within 10 %) per seed, as
-#: measured (docs/your-own-neck.md section 7).  Seed 1: dry and pulley compared on cable 1 do not
-#: separate (alternatives); seed 3's f_s reads +24 % (the arctan law's asymptote, not the plant's).
-DRY_SEEDS = {1: (False, True), 2: (True, True), 3: (True, False)}
+#: Extra dry friction on one cable: (named alone, f_s within 10 %, f_travel within 10 %) per seed and
+#: log length (moves: 8 give 15.6 s, 31 give 59.3 s), as measured (docs/your-own-neck.md section 7).
+#: On 15.6 s seed 1's dry and pulley laws compared on cable 1 do not separate (alternatives, with
+#: what would separate them); on 59.3 s they do.  Seed 3's f_s, eq 37's asymptote, reads +24 to +27 %
+#: (the seen friction is flat above 1 rad/s, the arctan overshoots it) while its f_travel, the law's
+#: mean force per unit of travel over the log, is within 10 %; seed 1's f_travel on 15.6 s reads
+#: -13 % (what the model's other terms take from it there; f_s -5.7 %).  Known misses are asserted
+#: as such (a fix must update this table).
+DRY_CELLS = {(1, 8): (False, True, False), (2, 8): (True, True, True), (3, 8): (True, False, True),
+             (1, 31): (True, True, True), (3, 31): (True, False, True)}
+
+
+def _within(value, hidden, rtol=0.10):
+    return abs(value / hidden - 1) <= rtol
 
 
 @full_grid
-@pytest.mark.parametrize("seed", sorted(DRY_SEEDS))
-def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(blind10, seed):
+@pytest.mark.parametrize("seed,moves", sorted(DRY_CELLS))
+def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(blind10, seed, moves):
     """A tanh Coulomb force on cable 1's commanded force (the baseline without eq 37's friction,
-    as in the 3-joint tests): ``dry_friction`` named first, on cable 1, on every seed.  Compared
-    with ``pulley_friction`` on that cable (``selection.one_cable_pair``) it is named alone on seeds
-    2 and 3; on seed 1 neither law adds to the other there and the verdict lists both as
-    alternatives (``report.look_alike_lines``).  f_s within 10 % on seeds 1-2 (-5.7 %, +2.1 %);
-    seed 3's +24 % is a known miss, asserted as one (a fix must update ``DRY_SEEDS``)."""
-    alone, sized = DRY_SEEDS[seed]
-    spec, diag = blind10("dry_friction", seed)
+    as in the 3-joint tests): ``dry_friction`` named first, on cable 1, on every seed and length.
+    Compared with ``pulley_friction`` on that cable (``selection.one_cable_pair``) it is named alone
+    where ``DRY_CELLS`` says so; where not, the verdict lists both as alternatives and the report's
+    line says which tension range or log length would separate them (``report.look_alike_lines``).
+    f_s against the hidden F; f_travel against the hidden law's own mean force per unit of travel
+    over the same encoder speeds (the generator's formula F tanh(theta_dot / 0.3), not eq 37)."""
+    from identification.diagnosis.report import look_alike_lines
+
+    alone, sized, travel = DRY_CELLS[seed, moves]
+    spec, diag = blind10("dry_friction", seed, moves=moves)
     names = list(diag.verdict) if isinstance(diag.verdict, list) else [diag.verdict]
     assert names[0] == "dry_friction", diag.verdict
     assert (names == ["dry_friction"]) == alone, diag.verdict
     f = diag.findings[0]
     assert f.cables == [c + 1 for c in spec.cables]
-    within = abs(f.parameters[spec.symbol].value / spec.magnitude - 1) <= 0.10
-    assert within == sized, (seed, f.parameters[spec.symbol].value, spec.magnitude)
+    assert _within(f.parameters[spec.symbol].value, spec.magnitude) == sized, (seed, moves, f.parameters[spec.symbol])
+    v = np.abs(diag.data.theta_dot_fast[:, spec.cables[0]])
+    hidden_travel = np.sum(spec.magnitude * np.tanh(v / 0.3) * v) / np.sum(v)
+    got = f.parameters[f"f_travel({spec.cables[0] + 1})"].value
+    assert _within(got, hidden_travel) == travel, (seed, moves, got, hidden_travel)
+    if not alone:
+        line, = look_alike_lines(diag)
+        assert "on cable 1" in line and "deg apart after the baseline" in line and "would separate them" in line
+
+
+def test_the_travel_mean_friction_is_the_laws_work_over_the_distance():
+    """``travel_mean_friction`` against the closed form: over speeds swept uniformly through
+    [-V, V], sum f |v| / sum |v| = (2/pi) f_s int_0^V arctan(c v) v dv / (V^2 / 2), with
+    int v arctan(c v) dv = (v^2 / 2) arctan(c v) - v / (2 c) + arctan(c v) / (2 c^2).  A named dry
+    friction reports it per cable at its fitted f_s and c_s, sigma scaled alike."""
+    from identification.diagnosis.columns.dry_friction import DryFrictionColumns, travel_mean_friction
+
+    V, c, f_s = 7.0, 1.3, 12.0
+    v = np.linspace(-V, V, 400001)
+    integral = V ** 2 / 2 * np.arctan(c * V) - V / (2 * c) + np.arctan(c * V) / (2 * c ** 2)
+    expected = (2 / np.pi) * f_s * integral / (V ** 2 / 2)
+    assert travel_mean_friction(v, f_s, c) == pytest.approx(expected, rel=1e-5)
+    assert np.isnan(travel_mean_friction(np.zeros(10), f_s, c))
+    speeds = np.stack([v, 0.5 * v], axis=1)
+    out = DryFrictionColumns.derived_parameters(speeds, {"f_s(2)": (f_s, 0.3), "c_s": (c, None)}, {"c_s": c})
+    assert list(out) == ["f_travel(2)"]
+    value, sigma, unit, _ = out["f_travel(2)"]
+    assert value == pytest.approx(travel_mean_friction(0.5 * v, f_s, c)) and unit == "N"
+    assert sigma == pytest.approx(0.3 * value / f_s)
+
+
+def test_the_separating_angle_is_where_the_leaders_tests_would_pass():
+    """``separating_angle``: scaling what the leader adds to its look-alike by the first-order law
+    (improvement with sin^2 of the columns' angle, each test's normal score with sin of it) to the
+    angle it returns makes that comparison pass the encompassing test's own rule
+    (``Comparison.significant`` at alpha and half the minimum improvement) exactly there, and fail
+    just below; the log length likewise when only the p values fall short; None when the leader
+    adds nothing."""
+    from scipy import stats
+
+    from identification.diagnosis.selection import separating_angle
+    from identification.diagnosis.statistics import Comparison
+
+    alpha, half = 0.01, 0.01
+
+    def scaled(c, k):
+        z = lambda p: stats.norm.isf(p) * np.sqrt(k)
+        return Comparison(c.improvement * k, c.holdout_improvement * k, float(stats.norm.sf(z(c.p_holdout))),
+                          float(stats.norm.sf(z(c.p_train))))
+
+    for c, angle in ((Comparison(0.0068, 0.005, 0.086, 0.011), 14.7),      # seed 1, 15.6 s: improvement and p short
+                     (Comparison(0.0128, 0.01, 0.019, 8.9e-4), 17.8)):     # seed 3, 30.8 s: the Wilcoxon p short
+        needed, length = separating_angle(angle, c, half, alpha)
+        k = (np.sin(np.radians(needed)) / np.sin(np.radians(angle))) ** 2
+        assert scaled(c, k * (1 + 1e-9)).significant(alpha, half)
+        assert not scaled(c, k * (1 - 1e-3)).significant(alpha, half)
+        if c.improvement >= half:               # only the p values short: a longer log would do
+            assert length == pytest.approx(k) and scaled(c, length * (1 + 1e-9)).significant(alpha, half)
+        else:
+            assert length is None
+    assert separating_angle(15.0, Comparison(-0.001, 0.0, 0.3, 0.2), half, alpha) == (None, None)
+    assert separating_angle(80.0, Comparison(0.0001, 0.0, 0.4, 0.3), half, alpha)[0] is None
 
 
 def test_look_alike_laws_are_compared_on_the_one_cable_the_leader_rests_on():
@@ -595,3 +668,24 @@ def test_a_step_of_look_alikes_is_reported_as_alternatives():
     assert look_alike_lines(SimpleNamespace(steps=(on1,))) == [
         "step 1: dry_friction or pulley_friction: fitted together on cable 1 neither adds to the other, so this log "
         "supports one of them and cannot tell which; dry_friction has the larger cross-validated improvement"]
+    # with the columns' angle (selection.columns_angle): what would separate them
+    from identification.diagnosis.statistics import Comparison
+
+    adds = Comparison(0.0068, 0.005, 0.086, 0.011)
+    angled = Step(None, None, (), ["dry_friction", "pulley_friction"], object(),
+                  (EncompassingTest("dry_friction", "pulley_friction", None, adds, False, False, cable=1,
+                                    angle_deg=14.7, needed=(27.0, None)),))
+    assert look_alike_lines(SimpleNamespace(steps=(angled,))) == [
+        "step 1: dry_friction or pulley_friction: fitted together on cable 1 neither adds to the other, so this log "
+        "supports one of them and cannot tell which; dry_friction has the larger cross-validated improvement; their "
+        "columns are 14.7 deg apart after the baseline (about the coefficient of variation of cable 1's tension while "
+        "it moves: tan 14.7 deg = 0.26); a recording where that tension varies by a CV of about 0.51 (columns 27 deg "
+        "apart) would separate them"]
+    # two laws that do not differ by the tension: the angles only
+    import dataclasses
+
+    other = Step(None, None, (), ["dry_friction", "viscous_friction"], object(),
+                 (dataclasses.replace(angled.pairwise[0], b="viscous_friction", needed=(21.0, 1.6)),))
+    assert look_alike_lines(SimpleNamespace(steps=(other,)))[0].endswith(
+        "improvement; their columns are 14.7 deg apart after the baseline; a recording where they are 21 deg apart "
+        "would separate them, or a log about 1.6 times as long")

@@ -60,11 +60,11 @@ _RESIDUALS = (("torque_Nm", "joint torque", 1.0, "N m"), ("tension_N", "cable te
 
 
 def look_alike_lines(diag) -> list[str]:
-    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, not effects found together."""
+    """Per step whose verdict lists look-alikes (``selection.decide``): alternatives, and what would separate them."""
     return [f"step {i + 1}: {' or '.join(st.verdict)}: fitted together{getattr(st, 'look_alike_where', '')} neither "
             f"adds to the other, so this log supports one of them and cannot tell which; {st.verdict[0]} has the larger "
-            "cross-validated improvement" for i, st in enumerate(diag.steps)
-            if st.chosen is not None and isinstance(st.verdict, list)]
+            f"cross-validated improvement{getattr(getattr(st, 'separation', None), 'separating_text', str)()}"
+            for i, st in enumerate(diag.steps) if st.chosen is not None and isinstance(st.verdict, list)]
 
 
 def format_summary(diag) -> str:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
-from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term
+from identification.diagnosis.candidates import FitState, MeasuredData, ModelSpec, Term, fit_model
 from neck_sim import effects as effect_registry
 from identification.diagnosis.candidate import CandidateScore, evaluate_candidate
 from identification.diagnosis.columns import MotorColumns
@@ -34,6 +37,12 @@ class Step:
         return f" on cable {cables.pop()}" if len(cables) == 1 else ""
 
     @property
+    def separation(self) -> "EncompassingTest | None":
+        """The one-cable test whose two laws were not separated and whose columns' angle was
+        measured (:func:`separating_angle`), None otherwise."""
+        return next((t for t in self.pairwise if t.angle_deg is not None), None)
+
+    @property
     def extended(self) -> Evaluated | None:
         return None if self.chosen is None else self.chosen.model
 
@@ -49,7 +58,10 @@ class Step:
 class EncompassingTest:
     """Leader ``a`` and look-alike ``b`` fitted together: does each add significantly to the other?
     ``error`` says why the joint fit failed (then neither adds); ``cable`` (1-based) the cable both
-    were compared on in their one-cable forms (:func:`one_cable_pair`), None: as searched."""
+    were compared on in their one-cable forms (:func:`one_cable_pair`), None: as searched.  When
+    two such forms do not separate: ``angle_deg``, the angle between their magnitudes' columns after
+    the baseline's (deg, :func:`columns_angle`), and ``needed`` = (angle_deg, log_length_factor) of
+    :func:`separating_angle`, what would separate them."""
 
     a: str
     b: str
@@ -59,9 +71,14 @@ class EncompassingTest:
     b_adds: bool
     error: str = ""
     cable: int | None = None
+    angle_deg: float | None = None
+    needed: tuple = (None, None)
 
     def to_dict(self) -> dict:
         where = {} if self.cable is None else {"on_cable": self.cable}
+        if self.angle_deg is not None:
+            where.update(columns_angle_deg=self.angle_deg, separating_angle_deg=self.needed[0],
+                         separating_log_length_factor=self.needed[1])
         if self.error:
             return {"a": self.a, "b": self.b, **where, "error": self.error, "a_adds": self.a_adds, "b_adds": self.b_adds}
 
@@ -70,6 +87,34 @@ class EncompassingTest:
 
         return {"a": self.a, "b": self.b, **where, "b_adds_to_a": side(self.b_adds_to_a, self.b_adds),
                 "a_adds_to_b": side(self.a_adds_to_b, self.a_adds), "a_adds": self.a_adds, "b_adds": self.b_adds}
+
+    def separating_text(self) -> str:
+        """The report's clause on what would separate the two laws (:func:`separating_angle`): their
+        columns' angle after the baseline, the angle that would do and the log length that would at
+        today's angle.  When one law is on the tension and the other not (pulley against dry
+        friction) the angle's tangent is about the cable's tension CV while it moves, and it says so."""
+        if self.angle_deg is None:
+            return ""
+        from identification.diagnosis.columns import get
+
+        tension = get(self.a).uses_tension != get(self.b).uses_tension
+        a = self.angle_deg
+        text = f"; their columns are {a:.1f} deg apart after the baseline"
+        if tension:
+            text += (f" (about the coefficient of variation of cable {self.cable}'s tension while it moves: "
+                     f"tan {a:.1f} deg = {math.tan(math.radians(a)):.2f})")
+        angle, length = self.needed
+        adds = self.a_adds_to_b
+        if angle is None and adds is not None and adds.improvement > 0 and max(adds.p_holdout, adds.p_train) < 0.5:
+            return text + ", and no recording on that cable would separate them at this friction and noise"
+        if angle is None:
+            return text + f"; {self.a} adds nothing to {self.b} here, so this log does not say what would separate them"
+        if tension:
+            text += (f"; a recording where that tension varies by a CV of about {math.tan(math.radians(angle)):.2f} "
+                     f"(columns {angle:.0f} deg apart) would separate them")
+        else:
+            text += f"; a recording where they are {angle:.0f} deg apart would separate them"
+        return text + (f", or a log about {length:.1f} times as long" if length is not None else "")
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,14 +184,81 @@ def one_cable_pair(ctx: StepContext, a: CandidateScore, b: CandidateScore):
         return a, b, None
 
 
+def columns_angle(ctx: StepContext, both: Evaluated, a: Term, b: Term) -> float | None:
+    """Angle (deg) between the magnitude columns of terms ``a`` and ``b`` (one each: their
+    one-cable forms) after projecting out the step's baseline columns, on the weighted training rows
+    of ``both`` (baseline + a + b, its last pass); None when either has not exactly one column.
+
+    For dry and pulley friction on one cable the two columns differ by the cable's tension (eq 37's
+    constant force against one proportional to it), so the angle is about arctan of the tension's
+    coefficient of variation while the cable moves, as far as the baseline leaves it."""
+    try:
+        full = fit_model(ctx.data, both.fit.model, ctx.split.train, ctx.scales, both.fit.state, iterations=1,
+                         keep_rows=True)
+    except ValueError:
+        return None
+    W, _ = full.rows
+    base = set(ctx.base.fit.names)
+
+    def column(term: Term) -> np.ndarray | None:
+        sym = term.identification.columns[0].symbol if term.identification.columns else None
+        idx = [i for i, n in enumerate(full.names) if n not in base and n.split("(")[0] == sym]
+        return W[:, idx[0]] if len(idx) == 1 else None
+
+    ca, cb = column(a), column(b)
+    if ca is None or cb is None:
+        return None
+    B = W[:, [i for i, n in enumerate(full.names) if n in base]]
+    ca, cb = (c - B @ np.linalg.lstsq(B, c, rcond=None)[0] for c in (ca, cb))
+    cos = abs(float(ca @ cb)) / max(float(np.linalg.norm(ca) * np.linalg.norm(cb)), 1e-300)
+    return float(np.degrees(np.arccos(min(cos, 1.0))))
+
+
+def separating_angle(angle_deg: float, adds: Comparison, min_improvement: float, alpha: float
+                     ) -> tuple[float | None, float | None]:
+    """(angle, length factor): the angle (deg) between two look-alikes' columns at which the
+    leader's comparison ``adds`` (leader added to the other: what it alone explains) would pass
+    ``min_improvement`` and both p values below ``alpha``, and the factor on the log's length that
+    would do so at today's angle; None where that cannot be extrapolated (the leader adds nothing,
+    a p value at or above 0.5, or no angle below 90 deg suffices; the length: when the improvement
+    itself is short, which a longer log does not raise).
+
+    First order, the same friction and noise: what the leader adds is the part of its column the
+    other one cannot take, sin(angle) of it, so the improvement scales with sin^2(angle); each
+    test's statistic as a normal score z = Phi^-1(1 - p) with sin(angle) (the added coefficient's
+    t, the Wilcoxon's mean chunk reduction over its spread) and with sqrt(length)."""
+    if not adds.improvement > 0 or max(adds.p_holdout, adds.p_train) >= 0.5:
+        return None, None
+    z_alpha = stats.norm.isf(alpha)
+    by_p = max((z_alpha / stats.norm.isf(p)) ** 2 for p in (adds.p_holdout, adds.p_train))
+    by_improvement = min_improvement / adds.improvement
+    s2 = max(by_p, by_improvement) * math.sin(math.radians(angle_deg)) ** 2
+    angle = math.degrees(math.asin(math.sqrt(s2))) if s2 < 1.0 else None
+    return angle, (by_p if by_improvement <= 1.0 else None)
+
+
 def encompass(ctx: StepContext, a: CandidateScore, b: CandidateScore) -> EncompassingTest:
     """Fit base + A + B; does each add significantly to the other?  Two motor-side look-alikes
-    are compared on the leader's one cable when it rests on one (:func:`one_cable_pair`)."""
+    are compared on the leader's one cable when it rests on one (:func:`one_cable_pair`); when
+    neither adds there, the test carries their columns' angle and the angle that would separate
+    them (:func:`columns_angle`, :func:`separating_angle`)."""
     a, b, cable = one_cable_pair(ctx, a, b)
     try:
         both = ctx.evaluate(ctx.base.fit.model.plus(a.term).plus(b.term), a.fit.state)
     except ValueError as exc:
         return EncompassingTest(a.term.name, b.term.name, None, None, False, False, str(exc), cable)
+    test = _encompassing(ctx, a, b, both, cable)
+    if cable is None or test.a_adds or test.b_adds:
+        return test
+    angle = columns_angle(ctx, both, a.term, b.term)
+    if angle is None:
+        return test
+    needed = separating_angle(angle, test.a_adds_to_b, 0.5 * ctx.settings.min_improvement, ctx.settings.alpha)
+    return dataclasses.replace(test, angle_deg=angle, needed=needed)
+
+
+def _encompassing(ctx: StepContext, a, b, both: Evaluated, cable: int | None) -> EncompassingTest:
+    """The encompassing test of :func:`encompass` once ``both`` (base + A + B) is fitted."""
     b_to_a = ctx.compare(a.model, both, b.added_params)
     a_to_b = ctx.compare(b.model, both, a.added_params)
     if b_to_a.improvement < 0 and a_to_b.improvement < 0:
