@@ -10,20 +10,21 @@ from neck_sim.params import default_params
 # long files (test_reproduce.py 34 s, test_effect_open.py 25 s) among the last handed out, where one
 # worker can run alone.  Longest first, the short files fill in at the end.
 FILE_SECONDS = {
-    "test_discovery_open.py": 115.3,
-    "test_docs.py": 110.5,
-    "test_any_neck.py": 84.6,
-    "test_diagnosis_verdicts.py": 54.6,
-    "test_discovery.py": 46.2,
-    "test_identify.py": 41.6,
-    "test_discovery_cli.py": 37.0,
-    "test_reproduce.py": 34.0,
-    "test_effect_open.py": 25.1,
-    "test_identify_coverage.py": 22.3,
-    "test_figures.py": 21.8,
-    "test_typing.py": 20.7,
-    "test_simulate_any_neck.py": 16.1,
-    "test_output_error.py": 9.6,
+    "test_docs.py": 114.3,
+    "test_discovery_open.py": 98.6,
+    "test_any_neck.py": 87.2,
+    "test_diagnosis_verdicts.py": 50.4,
+    "test_discovery_cli.py": 47.6,
+    "test_identify.py": 45.0,
+    "test_discovery.py": 35.7,
+    "test_reproduce.py": 32.3,
+    "test_effect_open.py": 26.1,
+    "test_figures.py": 24.4,
+    "test_identify_coverage.py": 23.5,
+    "test_typing.py": 22.4,
+    "test_output_error_jacobian.py": 19.6,
+    "test_simulate_any_neck.py": 19.0,
+    "test_output_error.py": 14.2,
 }
 
 

@@ -69,3 +69,39 @@ def test_the_correction_leaves_a_neck_with_enough_cables_alone():
     term = SimpleNamespace(identification=SimpleNamespace(camera_noise_bias=True, columns=()))
     ctx = SimpleNamespace(data=SimpleNamespace(C=4, n=3, params=SimpleNamespace(sensors=SimpleNamespace(camera_noise=0.017))))
     assert corrected_parameters(ctx, SimpleNamespace(term=term), params) is params
+
+
+def test_a_replicate_is_the_log_prepared_again_with_its_noisier_frames():
+    """A SIMEX replicate (:func:`noisier`) takes the log's filtered and decimated motor signals
+    instead of filtering them again; it is, bit for bit, the data prepared from scratch from the
+    same measurements with the noisier frames and the log's cutoffs."""
+    from controllers.trajectories import cycloidal_path
+    from identification.diagnosis.errors_in_variables import noisier
+    from identification.diagnosis.measured import MeasuredData
+    from identification.excitation import predict_run, synthetic_measurements
+    from identification.preprocessing import Measurements, PreprocessSettings
+    from neck_sim.params import default_params
+
+    p = default_params(3)
+    a = np.radians([40.0, -30.0, 20.0])
+    traj = cycloidal_path([np.zeros(3), a, -a, np.zeros(3)], 1.5, 0.3, name="simex replicate")
+    t = np.arange(0.0, traj.duration, 1.0 / 500.0)
+    s = traj.sample(t)
+    rng = np.random.default_rng(3)
+    meas = synthetic_measurements(predict_run(s.alpha, s.alpha_dot, s.alpha_ddot, t, p), p, rng)
+    data = MeasuredData(meas, p)
+    noise = np.radians(1.0) * rng.standard_normal(meas.alpha_camera.shape)
+    rep = noisier(data, noise)
+    cut = data.prep.cutoffs
+    fresh = MeasuredData(Measurements(meas.t_motor, meas.theta.copy(), meas.force.copy(), meas.t_camera,
+                                      meas.alpha_camera + noise), p,
+                         PreprocessSettings(motor_cutoff_hz=cut["motors"].hz, camera_cutoff_hz=cut["camera"].hz))
+    assert rep.prep.cutoffs == fresh.prep.cutoffs
+    for name in ("theta", "theta_dot", "theta_ddot", "force", "alpha", "alpha_dot", "alpha_ddot", "x_c", "x_c_dot"):
+        assert np.array_equal(getattr(rep.prep, name), getattr(fresh.prep, name)), name
+    for name in ("theta_ddot_fast", "linkage", "Z", "f_s0", "tension0", "taut"):
+        assert np.array_equal(getattr(rep, name), getattr(fresh, name)), name
+    for got, want in zip(rep.observations(0.0), fresh.observations(0.0)):
+        assert np.array_equal(got, want)
+    # the frames changed, the motors did not: the replicate is not the log itself
+    assert not np.array_equal(rep.alpha, data.alpha)

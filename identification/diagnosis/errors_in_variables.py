@@ -151,7 +151,10 @@ def noisier(data, noise: np.ndarray, fixed_chain: bool = True):
     if fixed_chain:
         settings = dataclasses.replace(settings, motor_cutoff_hz=prep.cutoffs["motors"].hz,
                                        camera_cutoff_hz=prep.cutoffs["camera"].hz)
-    out = MeasuredData(Measurements(fast.t, fast.theta, fast.force, tc, ac + noise), data.params, settings)
+    # the motor arrays are the log's own: their filtered and decimated signals are taken from its
+    # preparation (prepare's reuse, bit for bit the same), only the camera side is prepared again
+    out = MeasuredData(Measurements(fast.t, fast.theta, fast.force, tc, ac + noise), data.params, settings,
+                       reuse=prep)
     if out.S != data.S or not np.array_equal(out.t, data.t):
         raise RuntimeError("simex: a replicate's slow grid differs from the log's")
     return out

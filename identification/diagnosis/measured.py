@@ -36,10 +36,12 @@ class MeasuredData:
     """
 
     def __init__(self, meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
-                 *, slack_threshold: float = 2.0, slack_margin_s: float = 0.1):
+                 *, slack_threshold: float = 2.0, slack_margin_s: float = 0.1, reuse: Prepared | None = None):
         self.params = params
         self.settings = settings or PreprocessSettings()
-        self.prep: Prepared = prepare(meas, params, self.settings, camera_rate_hz=params.sensors.camera_rate_hz)
+        # reuse: prepare()'s, a preparation of the same motor arrays whose motor signals are taken
+        self.prep: Prepared = prepare(meas, params, self.settings, camera_rate_hz=params.sensors.camera_rate_hz,
+                                      reuse=reuse)
         prep = self.prep
         if not prep.has_camera:
             raise ValueError("camera: the diagnosis needs the /neck/camera joint angles (torque block eq 51 and "

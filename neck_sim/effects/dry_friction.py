@@ -7,12 +7,18 @@ from typing import ClassVar
 
 import numpy as np
 
-from neck_sim.analytic.dynamics import arctan_friction
 from neck_sim.effects.base import MotorEffect
+from neck_sim.lazy import lazy_attributes
 from neck_sim.params import NeckParams
 from neck_sim.validation import finite, indices, per_item
 
 __all__ = ["DryFriction"]
+
+# eq (37) is neck_sim.analytic.dynamics.arctan_friction, imported where it is used: the analytic
+# model loads numba (0.3-0.9 s), which importing the vocabulary (its classes, their validation and
+# apply) does not need.  This module's name for it stays, loaded on first access.
+__getattr__, __dir__ = lazy_attributes(__name__, {"arctan_friction": "neck_sim.analytic.dynamics"},
+                                       [*__all__, "arctan_friction"])
 
 
 @dataclass(frozen=True)
@@ -61,10 +67,14 @@ class DryFriction(MotorEffect):
             raise ValueError("dry_friction.motor_force: needs params when f_s or c_s is not set")
         td = np.asarray(theta_dot, dtype=float)
         fs, cs = self.resolved(params) if params is not None else (self.per_cable(td.shape[-1]), self.c_s)
+        from neck_sim.analytic.dynamics import arctan_friction
+
         return arctan_friction(td, cs, fs)
 
     def regressor(self, theta_dot, tension=None, params: NeckParams | None = None):
         """d force / d f_s = (2/pi) arctan(c_s theta_dot), (..., m)."""
+        from neck_sim.analytic.dynamics import arctan_friction
+
         cs = self.c_s if self.c_s is not None else params.friction.c_s
         return arctan_friction(np.asarray(theta_dot, dtype=float), cs, 1.0)
 
