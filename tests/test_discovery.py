@@ -128,6 +128,11 @@ def test_paper_story_from_a_rigid_frictionless_model(blind):
     # the identified friction is the plant's (Table 1), and alpha_hat improves as in §5.5
     fs = [_param(f1, f"f_s({i + 1})") for i in range(4)]
     np.testing.assert_allclose(fs, diag.data.params.friction.f_s, rtol=0.05)
+    # beside f_s, the law's mean force per unit of each cable's travel over this log, written here
+    speed = np.abs(diag.data.theta_dot_fast)
+    law = np.asarray(fs) * (2 / np.pi) * np.arctan(_param(f1, "c_s") * speed)
+    travel = [_param(f1, f"f_travel({i + 1})") for i in range(4)]
+    np.testing.assert_allclose(travel, (law * speed).sum(axis=0) / speed.sum(axis=0), rtol=1e-9)
     a0 = diag.baseline.alpha_hat_vs_camera.holdout.mean_abs_deg
     a1 = diag.final.alpha_hat_vs_camera.holdout.mean_abs_deg
     assert a1 < 0.75 * a0

@@ -141,11 +141,10 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
             out[name] = Parameter(float(v), profile_sigma(ctx, term, k, sh.profile_step, cand.train_score), sh.unit)
         else:
             out[name] = Parameter(float(v), None, sh.unit if sh else "", "shape parameter, grid search")
-    derived = getattr(term.identification, "derived_parameters", None)     # e.g. dry friction's f_travel
-    if derived is not None:
-        fitted = {n: (p.value, p.sigma) for n, p in out.items()}
-        for n, (value, sigma, unit, note) in derived(ctx.data.theta_dot_fast, fitted, dict(term.shape)).items():
-            out[n] = Parameter(float(value), None if sigma is None else float(sigma), unit, note)
+    fitted = {n: (p.value, p.sigma) for n, p in out.items()}
+    derived = term.identification.derived_parameters(ctx.data.theta_dot_fast, fitted, dict(term.shape))
+    for n, (value, sigma, unit, note) in derived.items():     # e.g. dry friction's f_travel
+        out[n] = Parameter(float(value), None if sigma is None else float(sigma), unit, note)
     return out
 
 

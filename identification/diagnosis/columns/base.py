@@ -351,6 +351,13 @@ class EffectColumns:
         return params
 
     @classmethod
+    def derived_parameters(cls, theta_dot: np.ndarray, fitted: dict, shape: dict) -> dict:
+        """Parameters reported beside the fitted ones, {name: (value, sigma, unit, note)}, from
+        ``fitted`` {name: (value, sigma)}, the searched ``shape`` and the encoders' speeds
+        ``theta_dot`` (T, C) rad/s (default: none)."""
+        return {}
+
+    @classmethod
     def shape_violation(cls, shape: dict) -> str:
         """'' when the searched ``shape`` is one this effect can take, else why not (default: any)."""
         return ""
