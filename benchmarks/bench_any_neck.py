@@ -28,6 +28,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
     python benchmarks/bench_any_neck.py --detection --moves 16 --cases spring_error none   # 30.8 s logs
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
+    python benchmarks/bench_any_neck.py --detection --undecided --cases joint_friction none    # + "not decided" lines
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction":
              "actuation_delay": 1.0}
 
 
-def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
+def detection(directory: str, seeds, moves: int = 8, cases=None, undecided: bool = False) -> None:
     from open_world.generator import make_spec, simulate_reachable
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -99,6 +100,10 @@ def detection(directory: str, seeds, moves: int = 8, cases=None) -> None:
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
                   f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}",
                   flush=True)
+            if undecided:           # the summary's lines on one-joint terms the log is too short to decide
+                from identification.diagnosis.materiality import undecided_lines
+                for line in undecided_lines(diag):
+                    print(f"{'':22}{line.strip()}", flush=True)
 
 
 def _candidate_fit(diag, spec) -> str:
@@ -167,6 +172,8 @@ def main(argv=None) -> int:
                     help="--detection: waypoint moves per log (8: 15.6 s, the tests' logs; 16: 30.8 s, the "
                          "one-joint spring's test log; 31: 59.3 s)")
     ap.add_argument("--cases", nargs="+", choices=sorted(DETECTION), help="--detection: only these cases")
+    ap.add_argument("--undecided", action="store_true",
+                    help="--detection: also print the summary's lines on one-joint terms the log is too short to decide")
     args = ap.parse_args(argv)
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -177,7 +184,7 @@ def main(argv=None) -> int:
     directory = args.dir or tmp.name
     os.makedirs(directory, exist_ok=True)
     if args.detection:
-        detection(directory, args.seeds, args.moves, args.cases)
+        detection(directory, args.seeds, args.moves, args.cases, args.undecided)
         if tmp is not None:
             tmp.cleanup()
         return 0

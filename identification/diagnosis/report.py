@@ -24,6 +24,7 @@ import os
 
 import numpy as np
 
+from identification.diagnosis.materiality import undecided_lines
 from identification.diagnosis.result import method_text
 from identification.diagnosis.parameters import NOTE_LABELS
 from neck_sim.effects import INSUFFICIENT_EXCITATION, UNEXPLAINED
@@ -105,6 +106,7 @@ def format_summary(diag) -> str:
     if diag.leftover is not None and diag.leftover.significant:
         lines.append("  unexplained structure left (strongest first):")
         lines += [f"      {x.describe()}" for x in diag.leftover.found[:3]]
+    lines += undecided_lines(diag)
     lines += [f"  note: {n}" for n in diag.notes]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
