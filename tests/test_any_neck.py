@@ -17,6 +17,7 @@ see), is within 1 %, so that is asserted at 2 %.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 
@@ -125,10 +126,13 @@ def _diagnose_blind(path, model="paper"):
 def test_the_clean_ten_joint_log_is_diagnosed_none(neck10):
     """No hidden effect: the structure tests find nothing beyond noise (``none``, not
     ``unexplained``), and the 15 s log is long enough to decide (no gap blocks a verdict)."""
+    from identification.diagnosis.materiality import undecided_lines
+
     diag = _diagnose_blind(neck10[0])
     assert not any(g.fatal for g in diag.gaps)
     assert diag.verdict == "none" and not diag.findings
     assert diag.leftover is not None and not diag.leftover.significant
+    assert undecided_lines(diag) == []          # no "a longer log would decide" on a clean log
 
 
 @pytest.fixture(scope="module")
@@ -170,9 +174,13 @@ def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge
     the own channel's band (materiality.in_own_band).  Its largest tau_j / sigma is at the hidden
     joint and the value within 25 % (seed 1: +23 % +- 20 %).  The verdict itself misses it on this
     short log: in its band joint 5's torque residual is 48 % lower cross-validated, but its F-test
-    over the band's ~30 effective training samples gives p 0.01 with the factors 2N and 2 (against
-    7.7e-4).  Named on joint 5 on the 30.8 s log of the same seed (-29 %), and within 10 % on the
-    59.3 s one (-8.6 %)."""
+    over the band's 26 effective training samples gives p 0.01 with the factors 2N and 2 (against
+    1e-3).  The summary says so in a line that names joint 5 and the log length at which the same
+    gain would pass (about 18 s: ``materiality.undecided_lines``); named on joint 5 on the 30.8 s
+    log of the same seed (-29 %), and within 10 % on the 59.3 s one (-8.6 %)."""
+    from identification.diagnosis.materiality import undecided_lines
+    from identification.diagnosis.report import format_summary
+
     spec, diag = blind10("joint_friction", SEED)
     fit = _own_candidate(diag, spec).fit
     names = list(fit.names)
@@ -180,6 +188,11 @@ def test_joint_friction_column_on_the_ten_joint_neck_locates_and_sizes_the_hinge
     top = max(own, key=lambda k: fit.value[k] / fit.sigma[k])
     assert names[top] == spec.symbol, (spec.description, names[top])
     np.testing.assert_allclose(fit.value[top], spec.magnitude, rtol=0.25)
+    (line,) = undecided_lines(diag)
+    assert diag.verdict == "none" and line in format_summary(diag).splitlines()
+    assert f"joint_friction not decided: joint {spec.joints[0] + 1}'s torque channel" in line
+    need = float(line.split("about ")[1].split(" s would decide")[0])
+    assert 15.6 < need < 30.8                   # longer than this log, shorter than the one that names it
 
 
 @full_grid
@@ -588,6 +601,47 @@ def test_a_one_joint_term_is_measured_on_its_own_channel():
     passes, held_to, _, note = candidate_decision(ctx, strong, edge)
     assert passes and held_to.p_train == pytest.approx(0.6 * alpha_c) and not note
     assert candidate_decision(ctx, strong, None)[1] == strong
+
+
+def test_a_material_own_channel_short_of_samples_names_the_log_length_that_would_decide():
+    """A one-joint term whose own channel is 45 % lower in its band (at least the 12 % minimum)
+    but whose F-test over 26 effective samples (3 parameters, factors 2N x 2 = 40) misses 1e-3:
+    its note and the summary line name the joint and the log length at which the same relative
+    gain passes, found here by counting samples up with the F distribution (scipy) until 40 p <
+    1e-3, scaled by the log's 14.5 s.  No line when the channel is below 12 %, the whole score
+    worse held out, the F-test already passes, or the candidate was named."""
+    from types import SimpleNamespace
+
+    from scipy import stats
+
+    from identification.diagnosis.candidates import Term
+    from identification.diagnosis.materiality import OwnComparison, deciding_length, undecided_lines, undecided_note
+    from identification.diagnosis.statistics import Comparison
+
+    def p40(n):
+        F = ((1.0 - 0.55) / 3) / (0.55 / (n - 3))
+        return 40 * stats.f.sf(F, 3, n - 3)
+
+    own = OwnComparison(0.45, 0.45, 1e-3, p40(26) / 2, ms_ref=1.0, ms_cand=0.55, added=3, n_eff=26, places=20,
+                        joint=5, duration_s=14.5)
+    assert p40(26) > 1e-3
+    n = 26
+    while not p40(n) < 1e-3:
+        n += 1
+    assert deciding_length(own, 1e-3) == pytest.approx(14.5 * n / 26)
+    whole = Comparison(0.005, 0.004, 0.2, 0.1)
+    note = undecided_note(own, whole, 1e-3, 0.02)
+    assert "joint 5" in note and f"about {14.5 * n / 26:.0f} s would decide" in note
+    assert undecided_note(dataclasses.replace(own, improvement=0.11), whole, 1e-3, 0.02) == ""
+    assert undecided_note(own, dataclasses.replace(whole, improvement=-0.001), 1e-3, 0.02) == ""
+    assert undecided_note(dataclasses.replace(own, n_eff=n), whole, 1e-3, 0.02) == ""
+    cand = SimpleNamespace(term=Term("joint_friction", (("joint", 5), ("width", 0.05))), significant=False,
+                           note="measured on its own channel; " + note)
+    diag = SimpleNamespace(findings=(), steps=[SimpleNamespace(candidates=[cand])])
+    (line,) = undecided_lines(diag)
+    assert "joint_friction not decided: joint 5" in line and f"about {14.5 * n / 26:.0f} s would decide" in line
+    named = SimpleNamespace(findings=(SimpleNamespace(effect="joint_friction"),), steps=diag.steps)
+    assert undecided_lines(named) == []
 
 
 def test_the_own_channel_is_compared_in_the_band_where_the_term_acts():

@@ -165,7 +165,7 @@ def deciding_length(own: OwnComparison, alpha: float) -> float | None:
 
 #: How :func:`candidate_decision` says that a one-joint term's own channel lacks samples (the
 #: start of the sentence; :func:`undecided_lines` finds it in the candidates' notes).
-UNDECIDED = "undecided on its own channel"
+UNDECIDED = "undecided for lack of samples"
 
 
 def undecided_note(own: OwnComparison | None, whole: Comparison, alpha: float, min_improvement: float) -> str:
@@ -183,7 +183,7 @@ def undecided_note(own: OwnComparison | None, whole: Comparison, alpha: float, m
         return ""
     return (f"{UNDECIDED}: joint {own.joint}'s torque channel {100 * own.improvement:.0f} % lower in its band, "
             f"F-test p {min(1.0, CHANNEL_TESTS * own.p_train):.2g} against {alpha:.2g} over {own.n_eff} "
-            f"effective samples ({own.duration_s:.1f} s of log); about {need:.0f} s of log would decide")
+            f"effective samples in {own.duration_s:.1f} s, about {need:.0f} s would decide")
 
 
 def undecided_lines(diag) -> list[str]:
@@ -197,7 +197,7 @@ def undecided_lines(diag) -> list[str]:
             if c.significant or c.term.name in named or UNDECIDED not in (c.note or ""):
                 continue
             text = c.note[c.note.index(UNDECIDED) + len(UNDECIDED) + 2:].split(";")[0]
-            out.append(f"  step {i + 1}: {c.term.name} not decided: {text}: record a longer log")
+            out.append(f"  step {i + 1}: {c.term.name} not decided: {text}: record a longer log to decide it")
     return out
 
 
