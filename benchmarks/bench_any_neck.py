@@ -173,7 +173,8 @@ def main(argv=None) -> int:
                          "one-joint spring's test log; 31: 59.3 s)")
     ap.add_argument("--cases", nargs="+", choices=sorted(DETECTION), help="--detection: only these cases")
     ap.add_argument("--undecided", action="store_true",
-                    help="--detection: also print the summary's lines on one-joint terms the log is too short to decide")
+                    help="--detection: also print the summary's lines on one-joint terms the log is too short "
+                         "to decide")
     args = ap.parse_args(argv)
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log

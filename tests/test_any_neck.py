@@ -669,7 +669,8 @@ def test_the_one_joint_form_is_placed_on_the_joint_whose_own_channel_it_lowers_m
         return float(np.mean(r[ctx.split.train] ** 2)), term, SimpleNamespace(residuals=lambda r=r: r)
 
     every = (0.0, Term("spring_error", ()), None)
-    assert min((trial(Term("spring_error", (("joint", j),))) for j in (1, 2, 3)), key=lambda e: e[0])[1].get("joint") == 1
+    whole_best = min((trial(Term("spring_error", (("joint", j),))) for j in (1, 2, 3)), key=lambda e: e[0])
+    assert whole_best[1].get("joint") == 1
     assert search_one_joint(ctx, trial, "spring_error", every)[1].get("joint") == 3
 
 

@@ -28,6 +28,11 @@ the more convincing, so both p values of both are multiplied by :data:`CHANNEL_T
 over the two: the better of two tests at alpha passes up to twice as often as one named in advance
 under no effect; the two share the joint's channel, so the factor is an upper bound).
 
+A term whose own channel is material but whose band F-test misses its level for lack of
+effective samples is not named; its note and the summary say so in one line naming its joint and
+the log length at which the same relative gain would pass (:func:`deciding_length`,
+:func:`undecided_lines`), so that a short log's ``none`` is not read as "no such effect".
+
     >>> from identification.diagnosis.materiality import own_channels, own_comparison
     >>> own_channels(term, n_joints=10)          # doctest: +SKIP
     [4]
@@ -45,8 +50,8 @@ from identification.diagnosis.statistics import (Comparison, channel_chunk_reduc
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
 __all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "UNDECIDED", "own_band_hz", "in_own_band",
-           "p_times", "own_channels", "own_train_ms", "own_min_improvement", "own_comparison", "OwnComparison", "deciding_length",
-           "undecided_note", "undecided_lines", "own_significant", "candidate_decision"]
+           "p_times", "own_channels", "own_train_ms", "own_min_improvement", "own_comparison", "OwnComparison",
+           "deciding_length", "undecided_note", "undecided_lines", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
@@ -129,7 +134,8 @@ class OwnComparison(Comparison):
     its training F-test was computed from: the band's training mean squares of the baseline and
     the candidate (``ms_ref``, ``ms_cand``, (N m)^2), the parameters ``added``, the band's
     effective training samples ``n_eff``, the Bonferroni factor ``places`` already in its p
-    values, the 1-based ``joint`` and the log's span ``duration_s`` (s: its slow-grid samples over their rate)."""
+    values, the 1-based ``joint`` and the log's span ``duration_s`` (s: its slow-grid samples over
+    their rate)."""
 
     ms_ref: float = float("nan")
     ms_cand: float = float("nan")
