@@ -29,6 +29,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --moves 16 --cases spring_error none   # 30.8 s logs
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3 --cases dry_friction --look-alikes --travel
+    python benchmarks/bench_any_neck.py --detection --undecided --cases joint_friction none    # + "not decided" lines
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction":
 
 
 def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bool = False,
-              travel: bool = False) -> None:
+              travel: bool = False, undecided: bool = False) -> None:
     from open_world.generator import make_spec, simulate_reachable
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -108,6 +109,10 @@ def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bo
 
                 for line in look_alike_lines(diag):
                     print(f"    {line}", flush=True)
+            if undecided:           # the summary's lines on one-joint terms the log is too short to decide
+                from identification.diagnosis.materiality import undecided_lines
+                for line in undecided_lines(diag):
+                    print(f"{'':22}{line.strip()}", flush=True)
 
 
 def _candidate_fit(diag, spec) -> str:
@@ -194,6 +199,9 @@ def main(argv=None) -> int:
                     help="--detection: print the report's look-alike lines (alternatives, what would separate them)")
     ap.add_argument("--travel", action="store_true",
                     help="--detection: for dry friction, print f_travel against the hidden law's travel mean")
+    ap.add_argument("--undecided", action="store_true",
+                    help="--detection: also print the summary's lines on one-joint terms the log is too short "
+                         "to decide")
     args = ap.parse_args(argv)
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -204,7 +212,7 @@ def main(argv=None) -> int:
     directory = args.dir or tmp.name
     os.makedirs(directory, exist_ok=True)
     if args.detection:
-        detection(directory, args.seeds, args.moves, args.cases, args.look_alikes, args.travel)
+        detection(directory, args.seeds, args.moves, args.cases, args.look_alikes, args.travel, args.undecided)
         if tmp is not None:
             tmp.cleanup()
         return 0

@@ -28,6 +28,11 @@ the more convincing, so both p values of both are multiplied by :data:`CHANNEL_T
 over the two: the better of two tests at alpha passes up to twice as often as one named in advance
 under no effect; the two share the joint's channel, so the factor is an upper bound).
 
+A term whose own channel is material but whose band F-test misses its level for lack of
+effective samples is not named; its note and the summary say so in one line naming its joint and
+the log length at which the same relative gain would pass (:func:`deciding_length`,
+:func:`undecided_lines`), so that a short log's ``none`` is not read as "no such effect".
+
     >>> from identification.diagnosis.materiality import own_channels, own_comparison
     >>> own_channels(term, n_joints=10)          # doctest: +SKIP
     [4]
@@ -44,8 +49,9 @@ from identification.filtering import lowpass
 from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "own_band_hz", "in_own_band", "p_times",
-           "own_channels", "own_min_improvement", "own_comparison", "own_significant", "candidate_decision"]
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "UNDECIDED", "own_band_hz", "in_own_band",
+           "p_times", "own_channels", "own_train_ms", "own_min_improvement", "own_comparison", "OwnComparison",
+           "deciding_length", "undecided_note", "undecided_lines", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
@@ -104,13 +110,101 @@ def own_comparison(ctx, ref, cand, term, added: int) -> Comparison | None:
     reductions = channel_chunk_reductions(ref_cv, cand_cv, _Chunks(split.chunk // merge)).sum(1)
     n_eff = effective_samples(int(split.train.sum()), band, rate) * len(ch)
     places = term.identification.places(dict(term.shape), data.n)
-    return p_times(Comparison(
+    ms_ref, ms_cand = own_train_ms(ctx, ref.fit, ch), own_train_ms(ctx, cand.fit, ch)
+    return p_times(OwnComparison(
         improvement=improvement(_ms(ref_cv, every, kept), _ms(cand_cv, every, kept)),
         holdout_improvement=improvement(_ms(ref_cv, split.holdout, kept), _ms(cand_cv, split.holdout, kept)),
         p_holdout=wilcoxon_p(reductions),
-        p_train=f_test_p(_ms(_band(ref.fit.residuals(), ch, rate, band), split.train, kept),
-                         _ms(_band(cand.fit.residuals(), ch, rate, band), split.train, kept),
-                         added, max(n_eff - added, 1))), places)
+        p_train=f_test_p(ms_ref, ms_cand, added, max(n_eff - added, 1)),
+        ms_ref=ms_ref, ms_cand=ms_cand, added=added, n_eff=n_eff, places=places, joint=ch[0] + 1,
+        duration_s=data.S / rate), places)
+
+
+def own_train_ms(ctx, fit, ch: list[int]) -> float:
+    """Training mean square of ``fit``'s residual channels ``ch`` in their band (zero-phase
+    low-passed at :func:`own_band_hz`): what the own channel's F-test compares."""
+    prep = ctx.data.prep
+    res = _band(fit.residuals(), ch, prep.rate_hz, own_band_hz(prep.cutoffs["common"].hz))
+    return _ms(res, ctx.split.train, list(range(len(ch))))
+
+
+@dataclasses.dataclass(frozen=True)
+class OwnComparison(Comparison):
+    """A :class:`Comparison` on a one-joint term's own channel (:func:`own_comparison`) with what
+    its training F-test was computed from: the band's training mean squares of the baseline and
+    the candidate (``ms_ref``, ``ms_cand``, (N m)^2), the parameters ``added``, the band's
+    effective training samples ``n_eff``, the Bonferroni factor ``places`` already in its p
+    values, the 1-based ``joint`` and the log's span ``duration_s`` (s: its slow-grid samples over
+    their rate)."""
+
+    ms_ref: float = float("nan")
+    ms_cand: float = float("nan")
+    added: int = 0
+    n_eff: int = 0
+    places: int = 1
+    joint: int = 0
+    duration_s: float = float("nan")
+
+
+def deciding_length(own: OwnComparison, alpha: float) -> float | None:
+    """The log length (s) at which ``own``'s training F-test, with the same band mean squares
+    (the same relative gain) over proportionally more effective samples, would pass at ``alpha``
+    with its factors (``places`` x :data:`CHANNEL_TESTS`): the least n_eff' with
+    f_test_p(ms_ref, ms_cand, added, n_eff' - added) x factors < alpha, times ``duration_s`` /
+    n_eff.  None when it already passes, or never would (no gain, or past 1000 times the log)."""
+    factor = own.places * CHANNEL_TESTS
+
+    def passes(n: int) -> bool:
+        return factor * f_test_p(own.ms_ref, own.ms_cand, own.added, max(n - own.added, 1)) < alpha
+
+    n = max(own.n_eff, 1)
+    if passes(n) or not own.ms_cand < own.ms_ref or not passes(1000 * n):
+        return None
+    lo, hi = n, 2 * n
+    while not passes(hi):
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1:                  # least passing count: p falls as the samples grow
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if passes(mid) else (mid, hi)
+    return own.duration_s * hi / n
+
+
+#: How :func:`candidate_decision` says that a one-joint term's own channel lacks samples (the
+#: start of the sentence; :func:`undecided_lines` finds it in the candidates' notes).
+UNDECIDED = "undecided for lack of samples"
+
+
+def undecided_note(own: OwnComparison | None, whole: Comparison, alpha: float, min_improvement: float) -> str:
+    """A sentence (:data:`UNDECIDED` ...) when a one-joint term's own channel is material (at
+    least :func:`own_min_improvement`, cross-validated; the whole score not worse held out) and
+    its training F-test does not pass at ``alpha`` for lack of effective samples: the joint, the
+    channel's improvement, the F-test's p with its factors and the log length that would decide
+    (:func:`deciding_length`); "" otherwise.  ``own`` and ``whole`` carry their places' factors,
+    not yet :data:`CHANNEL_TESTS`."""
+    if not isinstance(own, OwnComparison) or whole.improvement < 0.0 \
+            or own.improvement < own_min_improvement(min_improvement):
+        return ""
+    need = deciding_length(own, alpha)
+    if need is None:
+        return ""
+    return (f"{UNDECIDED}: joint {own.joint}'s torque channel {100 * own.improvement:.0f} % lower in its band, "
+            f"F-test p {min(1.0, CHANNEL_TESTS * own.p_train):.2g} against {alpha:.2g} over {own.n_eff} "
+            f"effective samples in {own.duration_s:.1f} s, about {need:.0f} s would decide")
+
+
+def undecided_lines(diag) -> list[str]:
+    """The summary's lines (one per candidate) on one-joint candidates of the diagnosis ``diag``
+    that were not named and whose own channel lacked the samples to decide (their note's
+    :data:`UNDECIDED` sentence): the effect, the joint and the log length that would decide."""
+    named = {f.effect if isinstance(f.effect, str) else tuple(f.effect) for f in diag.findings}
+    out = []
+    for i, st in enumerate(diag.steps):
+        for c in st.candidates:
+            if c.significant or c.term.name in named or UNDECIDED not in (c.note or ""):
+                continue
+            text = c.note[c.note.index(UNDECIDED) + len(UNDECIDED) + 2:].split(";")[0]
+            out.append(f"  step {i + 1}: {c.term.name} not decided: {text}: record a longer log to decide it")
+    return out
 
 
 def own_band_hz(common_hz: float) -> float:
@@ -168,6 +262,7 @@ def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[
     s = ctx.settings
     if own is None:
         return ctx.candidate_significant(whole), whole, ctx.candidate_margins(whole), ""
+    undecided = undecided_note(own, whole, ctx.alpha_candidate, s.min_improvement)
     whole, own = p_times(whole, CHANNEL_TESTS), p_times(own, CHANNEL_TESTS)
     margins = ctx.candidate_margins(whole)
     own_min = own_min_improvement(s.min_improvement)
@@ -176,11 +271,13 @@ def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[
         own_margins["whole_improvement"] = -np.inf
     band = (s.borderline, s.borderline_decades)
     if in_band(own_margins, *band) <= in_band(margins, *band):
-        return ctx.candidate_significant(whole), whole, margins, ""
+        passes = ctx.candidate_significant(whole)
+        return passes, whole, margins, "" if passes else undecided
     note = (f"measured on its own channel (the joint's torque): improvement {100 * own.improvement:.1f} % "
             f"(minimum {100 * own_min:.0f} %), whole score {100 * whole.improvement:.2f} %")
-    return own_significant(own, whole, ctx.alpha_candidate, s.min_improvement), \
-        dataclasses.replace(whole, p_holdout=own.p_holdout, p_train=own.p_train), own_margins, note
+    passes = own_significant(own, whole, ctx.alpha_candidate, s.min_improvement)
+    return passes, dataclasses.replace(whole, p_holdout=own.p_holdout, p_train=own.p_train), own_margins, \
+        "; ".join(x for x in (note, "" if passes else undecided) if x)
 
 
 def p_times(cmp: Comparison, factor: int) -> Comparison:

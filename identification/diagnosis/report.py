@@ -24,6 +24,7 @@ import os
 
 import numpy as np
 
+from identification.diagnosis.materiality import undecided_lines
 from identification.diagnosis.result import method_text
 from identification.diagnosis.parameters import NOTE_LABELS
 from neck_sim.effects import INSUFFICIENT_EXCITATION, UNEXPLAINED
@@ -105,7 +106,7 @@ def format_summary(diag) -> str:
     if diag.leftover is not None and diag.leftover.significant:
         lines.append("  unexplained structure left (strongest first):")
         lines += [f"      {x.describe()}" for x in diag.leftover.found[:3]]
-    lines += [f"  note: {n}" for n in diag.notes]
+    lines += undecided_lines(diag) + [f"  note: {n}" for n in diag.notes]
     lines.append("  time: " + ", ".join(f"{k} {v:.1f} s" for k, v in diag.timings.items()))
     return "\n".join(lines)
 
@@ -435,8 +436,7 @@ def _markdown(diag, figures: dict) -> str:
     L.append("")
     for key, title in (("torque", "Joint-torque residuals"), ("cable", "Cable residuals"),
                        ("candidates", "Candidates"), (UNEXPLAINED, "Unexplained structure"),
-                       ("alpha", "alpha_hat against the camera"),
-                       ("resim", "Re-simulation")):
+                       ("alpha", "alpha_hat against the camera"), ("resim", "Re-simulation")):
         if figures.get(key):
             L += [f"### {title}", "", f"![{title}]({os.path.basename(figures[key])})", ""]
     L += ["## Candidates per step", ""]
