@@ -75,6 +75,8 @@ def _key(r) -> tuple:
 
 
 def _one(job_and_dir):
+    from identification.diagnosis.materiality import undecided_lines
+
     job, logs, jsonl = job_and_dir
     kind, law, scale, seed = job
     with tempfile.TemporaryDirectory(prefix="neck-sim-clean-") as scratch:
@@ -98,6 +100,8 @@ def _one(job_and_dir):
                         "best_improvement": None if top is None else top.improvement,
                         "leftover": [x.describe() for x in diag.leftover.found[:2]] if diag.leftover else [],
                         "not_named": [n for n in diag.notes if "but is not named" in n],
+                        # a "record a longer log" line on a clean log is a false alarm too
+                        "undecided": undecided_lines(diag),
                         "t_sim": t_sim, "t_diag": time.perf_counter() - t0})
         if jsonl:                       # both crops of a log in one locked write: a log is whole or absent
             from bench_detection import append_jsonl
