@@ -1,0 +1,33 @@
+"""The diagnosis' fast paths against the plain computations they replace, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from identification.diagnosis.columns.backlash import motor_lead
+
+
+def _lead_numpy(motor, band):
+    """The play operator on arrays, one sample at a time (what :func:`motor_lead` replaced)."""
+    half = 0.5 * np.broadcast_to(np.asarray(band, dtype=float), motor.shape[1:])
+    step = np.diff(motor, axis=0, prepend=motor[:1])
+    out, lead = np.empty_like(motor), np.zeros(motor.shape[1:])
+    for k in range(motor.shape[0]):
+        lead = np.minimum(np.maximum(lead + step[k], -half), half)
+        out[k] = lead
+    return out
+
+
+@pytest.mark.parametrize("band", [0.5e-3, 0.0, np.array([0.0, 1e-3, 2e-3])])
+def test_motor_lead_is_the_array_play_operator_bit_for_bit(rng, band):
+    """Random walks crossing the band, exact reversals, steps of exactly 0 and a
+    NaN sample: the same bits as the array loop (NaN and the sign of zero included)."""
+    motor = np.cumsum(rng.normal(scale=2e-4, size=(3000, 3)), axis=0)
+    motor[1000:1100] = motor[999]                       # the motor standing: steps of exactly 0
+    motor[1100:1200] = -motor[1100:1200]
+    motor[2000, 1] = np.nan
+    for m in (motor, np.asfortranarray(motor), motor[:, 1]):
+        b = band if np.ndim(band) == 0 or m.ndim == 2 else band[1]
+        fast, ref = motor_lead(m, b), _lead_numpy(m, b)
+        assert fast.shape == ref.shape and fast.tobytes() == ref.tobytes()
