@@ -64,12 +64,15 @@ class LSResult:
 
 
 def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | None = None,
-                   units: Sequence[str] | None = None, row_weights: npt.ArrayLike | None = None) -> LSResult:
+                   units: Sequence[str] | None = None, row_weights: npt.ArrayLike | None = None, *,
+                   condition: bool = True) -> LSResult:
     """Least-squares solution of W v + rho = Y (eq 48) with eq (50)'s covariance.
 
     W (r, p), Y (r,), ``row_weights`` (r,) multiply rows of both before solving.  Raises ValueError
     for mismatched shapes, NaN, too few rows (r <= p) or an unidentifiable parameter (a column of
     zeros, or W rank-deficient: the message names the parameters involved).
+    ``condition=False`` skips ``cond`` of the unscaled W (one more SVD; NaN in the result) for
+    callers that never read it, such as the diagnosis' repeated fits.
     """
     Wm = np.asarray(W, dtype=float)
     Ym = np.asarray(Y, dtype=float)
@@ -111,5 +114,6 @@ def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | No
     sigma = np.sqrt(np.diag(cov))
     with np.errstate(divide="ignore"):
         rel = 100.0 * sigma / np.abs(value)
-    return LSResult(names, units, value, sigma, rel, cov, float(np.linalg.cond(Wm)), cond_scaled,
+    cond = float(np.linalg.cond(Wm)) if condition else float("nan")
+    return LSResult(names, units, value, sigma, rel, cov, cond, cond_scaled,
                     float(np.sqrt(sigma_rho2)), r, residual)

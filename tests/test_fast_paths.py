@@ -31,3 +31,17 @@ def test_motor_lead_is_the_array_play_operator_bit_for_bit(rng, band):
         b = band if np.ndim(band) == 0 or m.ndim == 2 else band[1]
         fast, ref = motor_lead(m, b), _lead_numpy(m, b)
         assert fast.shape == ref.shape and fast.tobytes() == ref.tobytes()
+
+
+def test_solve_weighted_without_the_condition_number_changes_nothing_else(rng):
+    """``condition=False`` (the diagnosis' fits): every other field the same bits, ``cond`` NaN;
+    the default's ``cond`` is numpy's of the weighted W."""
+    from identification.least_squares import solve_weighted
+
+    W = rng.normal(size=(200, 4)) * [1.0, 1e-3, 10.0, 1.0]
+    Y = W @ [1.0, 2.0, -3.0, 0.5] + rng.normal(scale=0.1, size=200)
+    w = rng.uniform(0.5, 2.0, size=200)
+    full, lean = solve_weighted(W, Y, row_weights=w), solve_weighted(W, Y, row_weights=w, condition=False)
+    for field in ("value", "sigma", "rel_sigma", "cov", "residual", "cond_scaled", "sigma_rho", "n_rows"):
+        assert np.asarray(getattr(lean, field)).tobytes() == np.asarray(getattr(full, field)).tobytes(), field
+    assert np.isnan(lean.cond) and full.cond == np.linalg.cond(W * w[:, None])
