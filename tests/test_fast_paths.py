@@ -45,3 +45,19 @@ def test_solve_weighted_without_the_condition_number_changes_nothing_else(rng):
     for field in ("value", "sigma", "rel_sigma", "cov", "residual", "cond_scaled", "sigma_rho", "n_rows"):
         assert np.asarray(getattr(lean, field)).tobytes() == np.asarray(getattr(full, field)).tobytes(), field
     assert np.isnan(lean.cond) and full.cond == np.linalg.cond(W * w[:, None])
+
+
+@pytest.mark.parametrize("neck", ["paper", "neck10x4"])
+def test_the_slopes_alone_are_the_general_segments_first_derivatives(rng, neck):
+    """Z's path (order 1 alone) against the general one that also computes the lengths: the same
+    bits for every segment kind, on poses across and beyond the joint range, batched and single."""
+    from neck_sim.analytic.cables import _geom, _routing_terms, _segments
+    from neck_sim.params import example_params
+
+    p = example_params(neck)
+    amax = p.geometry.alpha_max
+    for left_strut in (False, True, _routing_terms(p)[2]):
+        for a in (rng.uniform(-1.2 * amax, 1.2 * amax, size=(50, p.n_joints)), np.zeros(p.n_joints)):
+            lean = _segments(a, *_geom(p), orders=(1,), left_strut=left_strut)
+            general = _segments(a, *_geom(p), orders=(0, 1), left_strut=left_strut)
+            assert list(lean) == [1] and lean[1].tobytes() == general[1].tobytes()

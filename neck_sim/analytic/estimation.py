@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
+from neck_sim.analytic.cables import _evaluate, _segments, _z, cable_lengths
 from neck_sim.analytic.dynamics import static_elongation
 from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
@@ -135,7 +135,7 @@ def pinv_increment(alpha_hat: npt.ArrayLike, d_theta: npt.ArrayLike, params: Nec
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
         rhs = rhs - check_cables(d_elongation, m, "d_elongation")
-    Z = transmission_matrix(a, params, allow_outside_range=True)
+    Z = _z(_evaluate(a, params, (1,))[1], params)     # transmission_matrix of the pose checked above
     batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
     rows = int(np.prod(batch))
     Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
