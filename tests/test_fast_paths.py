@@ -34,17 +34,39 @@ def test_motor_lead_is_the_array_play_operator_bit_for_bit(rng, band):
 
 
 def test_solve_weighted_without_the_condition_number_changes_nothing_else(rng):
-    """``condition=False`` (the diagnosis' fits): every other field the same bits, ``cond`` NaN;
-    the default's ``cond`` is numpy's of the weighted W."""
+    """``condition=False`` (the diagnosis' fits): every other field the same bits, the condition
+    numbers NaN; the default's ``cond`` is numpy's of the weighted W."""
     from identification.least_squares import solve_weighted
 
     W = rng.normal(size=(200, 4)) * [1.0, 1e-3, 10.0, 1.0]
     Y = W @ [1.0, 2.0, -3.0, 0.5] + rng.normal(scale=0.1, size=200)
     w = rng.uniform(0.5, 2.0, size=200)
     full, lean = solve_weighted(W, Y, row_weights=w), solve_weighted(W, Y, row_weights=w, condition=False)
-    for field in ("value", "sigma", "rel_sigma", "cov", "residual", "cond_scaled", "sigma_rho", "n_rows"):
+    for field in ("value", "sigma", "rel_sigma", "cov", "residual", "sigma_rho", "n_rows"):
         assert np.asarray(getattr(lean, field)).tobytes() == np.asarray(getattr(full, field)).tobytes(), field
-    assert np.isnan(lean.cond) and full.cond == np.linalg.cond(W * w[:, None])
+    assert np.isnan(lean.cond) and full.cond == np.linalg.cond(W * w[:, None]) and np.isnan(lean.cond_scaled)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered in sqrt")     # sigma of the 6.6e9 and 2e9 W
+@pytest.mark.parametrize("tilt", [0.0, 1e-12, 1.5e-10, 3e-10, 1e-9, 1e-6])
+def test_solve_weighted_refuses_the_same_near_collinear_columns_either_way(rng, tilt):
+    """Two columns ``tilt`` apart (scaled condition numbers 3e16, 2e12, 1.3e10, 6.6e9, 2e9, 2e6):
+    the same error message, or the same values, with and without the condition numbers (lstsq's
+    singular values decide far from the 1e10 bound, the exact SVD's within a factor 2 of it)."""
+    from identification.least_squares import solve_weighted
+
+    W = rng.normal(size=(300, 3))
+    W[:, 2] = W[:, 1] + tilt * rng.normal(size=300)
+    Y = W @ [1.0, 2.0, 3.0]
+    outcomes = []
+    for condition in (True, False):
+        try:
+            outcomes.append(solve_weighted(W, Y, condition=condition).value.tobytes())
+        except ValueError as exc:
+            outcomes.append(str(exc))
+    assert outcomes[0] == outcomes[1]
+    refused = isinstance(outcomes[0], str)
+    assert refused == (tilt < 2e-10) and (not refused or "rank-deficient" in outcomes[0]), outcomes[0]
 
 
 @pytest.mark.parametrize("neck", ["paper", "neck10x4"])
