@@ -83,3 +83,42 @@ def test_the_slopes_alone_are_the_general_segments_first_derivatives(rng, neck):
             lean = _segments(a, *_geom(p), orders=(1,), left_strut=left_strut)
             general = _segments(a, *_geom(p), orders=(0, 1), left_strut=left_strut)
             assert list(lean) == [1] and lean[1].tobytes() == general[1].tobytes()
+
+
+def _alpha_pinv_by_steps(theta, params, elongation, alpha0):
+    """estimate_alpha_pinv's series, one public pinv_increment per step (what its loop replaced)."""
+    from neck_sim.analytic import pinv_increment
+
+    a, out = alpha0, [alpha0]
+    for t in range(1, theta.shape[-2]):
+        dx = None if elongation is None else elongation[..., t, :] - elongation[..., t - 1, :]
+        a = a + pinv_increment(a, theta[..., t, :] - theta[..., t - 1, :], params, dx, allow_outside_range=True)
+        out.append(a)
+    return np.stack(out, axis=-2)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered in subtract")      # the overflowing step
+def test_alpha_pinv_series_is_its_steps_bit_for_bit(rng):
+    """Two models' elongations under one motor series (the diagnosis' batch), with and without
+    elongation: the same bits as pinv_increment step after step; an overflowing elongation step
+    raises pinv_increment's own error at the same step."""
+    from neck_sim.analytic import estimate_alpha_pinv, motor_angles_rigid
+    from neck_sim.params import default_params
+
+    p = default_params(3)
+    t = np.linspace(0.0, 4.0, 400)[:, None]
+    alpha = 0.3 * np.sin(2 * np.pi * t * [0.3, 0.5, 0.7])
+    theta = motor_angles_rigid(alpha, p) + rng.normal(scale=1e-4, size=(400, 4))
+    x = rng.normal(scale=1e-5, size=(2, 400, 4))
+    a0 = np.broadcast_to(alpha[0], (2, 3))
+    th = np.broadcast_to(theta, x.shape)
+    for elong in (x, None):
+        fast = estimate_alpha_pinv(th, p, elong, alpha0=a0, tol=1.0)
+        assert fast.tobytes() == _alpha_pinv_by_steps(th, p, elong, a0).tobytes()
+    for k, message in ((200, "alpha_hat"), (0, "d_elongation")):   # the next step's pose, or this step's
+        y = x.copy()
+        y[1, k, 2], y[1, k + 1, 2] = -1e308, 1e308
+        with pytest.raises(ValueError, match=f"^{message}: contains NaN or infinity$"):
+            _alpha_pinv_by_steps(th, p, y, a0)
+        with pytest.raises(ValueError, match=f"^{message}: contains NaN or infinity$"):
+            estimate_alpha_pinv(th, p, y, alpha0=a0, tol=1.0)
