@@ -149,8 +149,12 @@ def _increment(a: np.ndarray, rhs: np.ndarray, params: NeckParams) -> np.ndarray
     Z = _z(_evaluate(a, params, (1,))[1], params)     # transmission_matrix of the checked pose
     batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
     rows = int(np.prod(batch))
-    Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
-    rhs = np.ascontiguousarray(np.broadcast_to(rhs, batch + (m,))).reshape(rows, m)
+    if Z.shape[:-2] != batch:         # the estimator's batch: already one Z per right-hand side
+        Z = np.broadcast_to(Z, batch + (n, m))
+    if rhs.shape[:-1] != batch:
+        rhs = np.broadcast_to(rhs, batch + (m,))
+    Z = np.ascontiguousarray(Z).reshape(rows, n, m)
+    rhs = np.ascontiguousarray(rhs).reshape(rows, m)
     out = np.empty((rows, n))
     bad = _pinv_rows(Z, rhs, out)
     if bad >= 0:
