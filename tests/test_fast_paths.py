@@ -122,3 +122,29 @@ def test_alpha_pinv_series_is_its_steps_bit_for_bit(rng):
             _alpha_pinv_by_steps(th, p, y, a0)
         with pytest.raises(ValueError, match=f"^{message}: contains NaN or infinity$"):
             estimate_alpha_pinv(th, p, y, alpha0=a0, tol=1.0)
+
+
+def test_check_holdable_solves_each_held_pose_once(monkeypatch):
+    """The control-test trajectory on the ten-joint neck holds its poses: one bounded least squares
+    per distinct pose, and the refusal names the sample that solving every sample finds furthest
+    out of reach."""
+    import scipy.optimize
+
+    from controllers import reachable_paths as rp
+    from neck_sim.params import example_params
+    from neck_sim.trajectory import scaled_trajectory
+
+    p = example_params("neck10x4")
+    traj = scaled_trajectory("control-test", p, 0.2)
+    t = np.arange(0.0, traj.duration + 0.025, 0.05)
+    distinct = len({a.tobytes() for a in traj.sample(t).alpha})
+    real, calls = scipy.optimize.lsq_linear, []
+    monkeypatch.setattr(scipy.optimize, "lsq_linear", lambda *a, **k: calls.append(1) or real(*a, **k))
+    with pytest.raises(ValueError, match="out of this neck's reach") as refused:
+        rp.check_holdable(traj, p)
+    assert len(calls) == distinct < t.size
+    Z, g = rp.transmission_matrix(traj.sample(t).alpha, p), rp.gravity_spring_torque(traj.sample(t).alpha, p)
+    hi = rp.FORCE_MARGIN * p.actuation.f_max
+    res = np.abs([Zk @ real(Zk, gk, bounds=(0.0, hi)).x - gk for Zk, gk in zip(Z, g)])
+    k = int(np.unravel_index(np.argmax(res), res.shape)[0])
+    assert f"the pose at t = {t[k]:.2f} s" in str(refused.value)
