@@ -257,11 +257,14 @@ def check_holdable(trajectory: Trajectory, params: NeckParams, *, margin: float 
     from scipy.optimize import lsq_linear
 
     scale = max(float(np.abs(g).max()), 1e-3)
-    held, residuals = [], []
+    held, residuals, solved = [], [], {}
     for k in range(t.size):                        # reach first: it says more than stability
-        sol = lsq_linear(Z[k], g[k], bounds=(0.0, hi))
-        held.append(sol.x)
-        residuals.append(Z[k] @ sol.x - g[k])
+        # a hold repeats its pose sample after sample: each distinct (Z, g) is solved once
+        key = (Z[k].tobytes(), g[k].tobytes())
+        if key not in solved:
+            solved[key] = lsq_linear(Z[k], g[k], bounds=(0.0, hi)).x
+        held.append(solved[key].copy())
+        residuals.append(Z[k] @ held[-1] - g[k])
     residuals = np.abs(np.array(residuals))
     if residuals.max() > 1e-3 * scale:
         k, j = map(int, np.unravel_index(np.argmax(residuals), residuals.shape))   # the pose furthest out of reach

@@ -64,12 +64,17 @@ class LSResult:
 
 
 def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | None = None,
-                   units: Sequence[str] | None = None, row_weights: npt.ArrayLike | None = None) -> LSResult:
+                   units: Sequence[str] | None = None, row_weights: npt.ArrayLike | None = None, *,
+                   condition: bool = True) -> LSResult:
     """Least-squares solution of W v + rho = Y (eq 48) with eq (50)'s covariance.
 
     W (r, p), Y (r,), ``row_weights`` (r,) multiply rows of both before solving.  Raises ValueError
     for mismatched shapes, NaN, too few rows (r <= p) or an unidentifiable parameter (a column of
     zeros, or W rank-deficient: the message names the parameters involved).
+    ``condition=False`` skips the two condition numbers (``cond`` of W, one more SVD, and
+    ``cond_scaled``, whose SVD lstsq's singular values stand in for: both NaN in the result) for
+    callers that never read them, such as the diagnosis' repeated fits; the values and errors
+    are the same.
     """
     Wm = np.asarray(W, dtype=float)
     Ym = np.asarray(Y, dtype=float)
@@ -95,14 +100,17 @@ def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | No
         raise ValueError(f"least squares: parameters {', '.join(zero)} are not excited by the data "
                          f"(their columns of W are zero)")
     Ws = Wm / norms
-    sv = np.linalg.svd(Ws, compute_uv=False)
-    cond_scaled = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
-    if not cond_scaled < 1e10:
-        _, _, vt = np.linalg.svd(Ws)
-        worst = np.argsort(-np.abs(vt[-1]))[:3]
-        raise ValueError(f"least squares: the observation matrix is rank-deficient (scaled condition number "
-                         f"{cond_scaled:.3g}); not separable: {', '.join(names[i] for i in worst)}")
-    v_s, *_ = np.linalg.lstsq(Ws, Ym, rcond=None)
+    if condition:
+        cond_scaled = _checked_scaled_condition(Ws, names)
+        v_s, *_ = np.linalg.lstsq(Ws, Ym, rcond=None)
+    else:
+        # lstsq's own singular values of Ws decide the rank; within a factor 2 of the bound the
+        # exact SVD's do (the two agree to ~1e-15 relative on the diagnosis' W, and to eps x cond
+        # at worst): the same decision and message as with the condition numbers, one SVD fewer
+        v_s, _, _, sv = np.linalg.lstsq(Ws, Ym, rcond=None)
+        if not (sv[-1] > 0 and sv[0] / sv[-1] < 0.5 * _COND_BOUND):
+            _checked_scaled_condition(Ws, names)
+        cond_scaled = float("nan")
     value = v_s / norms
     residual = Ym - Wm @ value
     sigma_rho2 = float(residual @ residual) / (r - p)
@@ -111,5 +119,23 @@ def solve_weighted(W: npt.ArrayLike, Y: npt.ArrayLike, names: Sequence[str] | No
     sigma = np.sqrt(np.diag(cov))
     with np.errstate(divide="ignore"):
         rel = 100.0 * sigma / np.abs(value)
-    return LSResult(names, units, value, sigma, rel, cov, float(np.linalg.cond(Wm)), cond_scaled,
+    cond = float(np.linalg.cond(Wm)) if condition else float("nan")
+    return LSResult(names, units, value, sigma, rel, cov, cond, cond_scaled,
                     float(np.sqrt(sigma_rho2)), r, residual)
+
+
+#: Scaled condition number from which W counts as rank-deficient.
+_COND_BOUND = 1e10
+
+
+def _checked_scaled_condition(Ws: np.ndarray, names: tuple) -> float:
+    """The condition number of the column-scaled W, or ValueError naming the three parameters
+    of its weakest direction when it is not below :data:`_COND_BOUND`."""
+    sv = np.linalg.svd(Ws, compute_uv=False)
+    cond_scaled = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+    if not cond_scaled < _COND_BOUND:
+        _, _, vt = np.linalg.svd(Ws)
+        worst = np.argsort(-np.abs(vt[-1]))[:3]
+        raise ValueError(f"least squares: the observation matrix is rank-deficient (scaled condition number "
+                         f"{cond_scaled:.3g}); not separable: {', '.join(names[i] for i in worst)}")
+    return cond_scaled

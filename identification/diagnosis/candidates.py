@@ -358,7 +358,7 @@ def fit_model(data: MeasuredData, model: ModelSpec, train: np.ndarray, scales: n
                 Y = np.concatenate([YT, YC])
             else:
                 W, Y = rowsT, YT
-            ls = solve_weighted(W, Y, names, units)
+            ls = solve_weighted(W, Y, names, units, condition=False)     # value and sigma only
             value, sigma = ls.value, ls.sigma
         else:
             value = sigma = np.zeros(0)

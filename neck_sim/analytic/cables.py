@@ -95,6 +95,14 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     has it (the statics' Hessian needs the same corners).
     """
     want = set(orders)
+    if want == {1} and jl is None:
+        # Z alone (the estimator's step, the control path): the slopes, the same rows as below,
+        # none of the lengths' half-angle sines and tangents
+        slopes = _segment_slopes(alpha, b, L, r, _side_terms(alpha, b, L))
+        out1 = np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1]))
+        for kind in range(1, SEG_LEFT_STRUT + 1 if left_strut else SEG_LEFT_STRUT):
+            out1[..., kind, :] = slopes[kind - 1]
+        return {1: out1}
     half = alpha / 2
     s, c = np.sin(half), np.cos(half)
     sides = _side_terms(alpha, b, L) if jl is None else tuple(jl.sides)

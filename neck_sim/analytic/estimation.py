@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.cables import _segments, cable_lengths, transmission_matrix
+from neck_sim.analytic.cables import _evaluate, _segments, _z, cable_lengths
 from neck_sim.analytic.dynamics import static_elongation
 from neck_sim.analytic.geometry import check_cables, check_pose
 from neck_sim.jit import kernel, solve_in_place
@@ -127,25 +127,47 @@ def pinv_increment(alpha_hat: npt.ArrayLike, d_theta: npt.ArrayLike, params: Nec
     not determine the pose.
     """
     n, m = params.n_joints, params.n_cables
-    if m < n:
-        raise ValueError(f"pinv_increment: {m} cables cannot determine {n} joint angles (eq 35 needs m >= N)")
+    _check_determined(n, m)
     act = params.actuation
     a = check_pose(alpha_hat, params, "alpha_hat", allow_outside_range)
     dth = check_cables(d_theta, m, "d_theta")
     rhs = (act.r_d / act.R) * dth
     if d_elongation is not None:
         rhs = rhs - check_cables(d_elongation, m, "d_elongation")
-    Z = transmission_matrix(a, params, allow_outside_range=True)
+    return _increment(a, rhs, params)
+
+
+def _check_determined(n: int, m: int) -> None:
+    if m < n:
+        raise ValueError(f"pinv_increment: {m} cables cannot determine {n} joint angles (eq 35 needs m >= N)")
+
+
+def _increment(a: np.ndarray, rhs: np.ndarray, params: NeckParams) -> np.ndarray:
+    """(Z(a)^T)^+ rhs of :func:`pinv_increment` for a checked pose ``a`` (..., N) rad and
+    right-hand side ``rhs`` (..., m) m."""
+    n, m = params.n_joints, params.n_cables
+    Z = _z(_evaluate(a, params, (1,))[1], params)     # transmission_matrix of the checked pose
     batch = np.broadcast_shapes(Z.shape[:-2], rhs.shape[:-1])
     rows = int(np.prod(batch))
-    Z = np.ascontiguousarray(np.broadcast_to(Z, batch + (n, m))).reshape(rows, n, m)
-    rhs = np.ascontiguousarray(np.broadcast_to(rhs, batch + (m,))).reshape(rows, m)
+    if Z.shape[:-2] != batch:         # the estimator's batch: already one Z per right-hand side
+        Z = np.broadcast_to(Z, batch + (n, m))
+    if rhs.shape[:-1] != batch:
+        rhs = np.broadcast_to(rhs, batch + (m,))
+    Z = np.ascontiguousarray(Z).reshape(rows, n, m)
+    rhs = np.ascontiguousarray(rhs).reshape(rows, m)
     out = np.empty((rows, n))
     bad = _pinv_rows(Z, rhs, out)
     if bad >= 0:
         where = np.unravel_index(bad, batch) if batch else ()
         raise UnreachableError(f"alpha_hat: Z Z^T is singular at sample {where} (pose outside the workspace)")
     return out.reshape(batch + (n,))
+
+
+def _finite_steps(values: np.ndarray) -> np.ndarray:
+    """(T - 1,) bool: whether every sample-to-sample difference of ``values`` (..., T, m) at each
+    step is finite, the check :func:`pinv_increment` makes of one step's differences."""
+    fin = np.isfinite(values).all(axis=-1)
+    return fin.reshape(-1, fin.shape[-1]).all(axis=0)
 
 
 def cable_stretch_at_f_max(params: NeckParams) -> np.ndarray:
@@ -178,9 +200,23 @@ def estimate_alpha_pinv(theta: npt.ArrayLike, params: NeckParams, elongation: np
     a = np.zeros(th.shape[:-2] + (n,)) if alpha0 is None else check_pose(alpha0, params, "alpha0")
     out = np.empty(th.shape[:-1] + (n,))
     out[..., 0, :] = a
+    # pinv_increment at every step, its differences, right-hand sides and their checks taken
+    # over the whole series at once (the same values; each error raised at the step it names)
+    if th.shape[-2] > 1:
+        _check_determined(n, m)
+    dth = np.diff(th, axis=-2)
+    rhs = (params.actuation.r_d / params.actuation.R) * dth
+    ok_th, ok_x = _finite_steps(dth), None
+    if x is not None:
+        dx = np.diff(x, axis=-2)
+        rhs, ok_x = rhs - dx, _finite_steps(dx)
     for t in range(1, th.shape[-2]):
-        dx = None if x is None else x[..., t, :] - x[..., t - 1, :]
-        a = a + pinv_increment(a, th[..., t, :] - th[..., t - 1, :], params, dx, allow_outside_range=True)
+        a = check_pose(a, params, "alpha_hat", allow_outside_range=True)
+        if not ok_th[t - 1]:
+            raise ValueError("d_theta: contains NaN or infinity")
+        if ok_x is not None and not ok_x[t - 1]:
+            raise ValueError("d_elongation: contains NaN or infinity")
+        a = a + _increment(a, rhs[..., t - 1, :], params)
         out[..., t, :] = a
     _check_reachable(out, th, x, params, float(np.linalg.norm(cable_stretch_at_f_max(params))) if tol is None else tol)
     return out

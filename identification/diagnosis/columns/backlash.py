@@ -26,11 +26,27 @@ def motor_lead(motor: np.ndarray, band: np.ndarray) -> np.ndarray:
     motor = np.asarray(motor, dtype=float)
     half = 0.5 * np.broadcast_to(np.asarray(band, dtype=float), motor.shape[1:])
     step = np.diff(motor, axis=0, prepend=motor[:1])
-    out = np.empty_like(motor)
-    lead = np.zeros(motor.shape[1:])
-    for k in range(motor.shape[0]):          # a play operator: sequential by nature, T x C cheap steps
-        lead = np.minimum(np.maximum(lead + step[k], -half), half)
-        out[k] = lead
+    out = np.empty(motor.shape)           # C order: the reshape below is a view
+    flat_step, flat_out = step.reshape(motor.shape[0], -1), out.reshape(motor.shape[0], -1)
+    for c, h in enumerate(half.reshape(-1).tolist()):
+        flat_out[:, c] = _play(flat_step[:, c].tolist(), -h, h)
+    return out
+
+
+def _play(steps: list, lo: float, hi: float) -> list:
+    """The play operator of :func:`motor_lead` on one column, in Python floats: a sequential loop
+    of T scalar steps runs ~20x faster on floats than on one-element arrays.  Bit for bit
+    ``np.minimum(np.maximum(lead + s, lo), hi)``: the same IEEE sums, and numpy's clip rules (the
+    first argument when it is larger or NaN, else the second, which decides the signed zeros)."""
+    out, lead = [], 0.0
+    for s in steps:
+        v = lead + s
+        if not (v > lo or v != v):
+            v = lo
+        if not (v < hi or v != v):
+            v = hi
+        out.append(v)
+        lead = v
     return out
 
 
