@@ -7,6 +7,7 @@ from typing import ClassVar
 import numpy as np
 
 from neck_sim.effects import Backlash
+from neck_sim.jit import kernel
 
 from identification.diagnosis.columns.base import ColumnData, EffectColumns, Shape
 
@@ -25,29 +26,28 @@ def motor_lead(motor: np.ndarray, band: np.ndarray) -> np.ndarray:
     1/SWING of it."""
     motor = np.asarray(motor, dtype=float)
     half = 0.5 * np.broadcast_to(np.asarray(band, dtype=float), motor.shape[1:])
-    step = np.diff(motor, axis=0, prepend=motor[:1])
-    out = np.empty(motor.shape)           # C order: the reshape below is a view
-    flat_step, flat_out = step.reshape(motor.shape[0], -1), out.reshape(motor.shape[0], -1)
-    for c, h in enumerate(half.reshape(-1).tolist()):
-        flat_out[:, c] = _play(flat_step[:, c].tolist(), -h, h)
-    return out
+    step = np.ascontiguousarray(np.diff(motor, axis=0, prepend=motor[:1]).reshape(motor.shape[0], -1))
+    out = np.empty(step.shape)
+    _play(step, np.ascontiguousarray(half.reshape(-1)), out)
+    return out.reshape(motor.shape)
 
 
-def _play(steps: list, lo: float, hi: float) -> list:
-    """The play operator of :func:`motor_lead` on one column, in Python floats: a sequential loop
-    of T scalar steps runs ~20x faster on floats than on one-element arrays.  Bit for bit
+@kernel
+def _play(step, half, out) -> None:
+    """The play operator of :func:`motor_lead` on columns ``step`` (T, K) with half bands ``half``
+    (K,), written into ``out`` (T, K): a sequential recursion, so compiled.  Bit for bit
     ``np.minimum(np.maximum(lead + s, lo), hi)``: the same IEEE sums, and numpy's clip rules (the
     first argument when it is larger or NaN, else the second, which decides the signed zeros)."""
-    out, lead = [], 0.0
-    for s in steps:
-        v = lead + s
-        if not (v > lo or v != v):
-            v = lo
-        if not (v < hi or v != v):
-            v = hi
-        out.append(v)
-        lead = v
-    return out
+    for c in range(step.shape[1]):
+        lo, hi, lead = -half[c], half[c], 0.0
+        for k in range(step.shape[0]):
+            v = lead + step[k, c]
+            if not (v > lo or v != v):
+                v = lo
+            if not (v < hi or v != v):
+                v = hi
+            out[k, c] = v
+            lead = v
 
 
 class BacklashColumns(EffectColumns):
