@@ -655,10 +655,10 @@ def test_a_material_own_channel_short_of_samples_names_the_log_length_that_would
     from identification.diagnosis.statistics import Comparison
 
     def p40(n):
-        F = ((1.0 - 0.55) / 3) / (0.55 / (n - 3))
+        F = ((1.0 - 0.5) / 3) / (0.5 / (n - 3))
         return 40 * stats.f.sf(F, 3, n - 3)
 
-    own = OwnComparison(0.45, 0.45, 1e-3, p40(26) / 2, ms_ref=1.0, ms_cand=0.55, added=3, n_eff=26, places=20,
+    own = OwnComparison(0.5, 0.5, 1e-3, p40(26) / 2, ms_ref=1.0, ms_cand=0.5, added=3, n_eff=26, places=20,
                         joint=5, duration_s=14.5)
     assert p40(26) > 1e-3
     n = 26
@@ -671,6 +671,10 @@ def test_a_material_own_channel_short_of_samples_names_the_log_length_that_would
     assert undecided_note(dataclasses.replace(own, improvement=0.11), whole, 1e-3, 0.02) == ""
     assert undecided_note(own, dataclasses.replace(whole, improvement=-0.001), 1e-3, 0.02) == ""
     assert undecided_note(dataclasses.replace(own, n_eff=n), whole, 1e-3, 0.02) == ""
+    # the data must lean towards the term: F-test p with its factors below 0.1 (here 0.040)
+    assert 0.03 < p40(26) < 0.1
+    weak = dataclasses.replace(own, ms_cand=0.55, p_train=0.11 / 2)
+    assert deciding_length(weak, 1e-3) is not None and undecided_note(weak, whole, 1e-3, 0.02) == ""
     cand = SimpleNamespace(term=Term("joint_friction", (("joint", 5), ("width", 0.05))), significant=False,
                            note="measured on its own channel; " + note)
     diag = SimpleNamespace(findings=(), steps=[SimpleNamespace(candidates=[cand])])
