@@ -175,9 +175,9 @@ UNDECIDED = "undecided for lack of samples"
 
 #: The own channel's training F-test p (with its factors) below which a term the log is too short
 #: to decide is reported as such: the data must lean towards it.  Set on the clean logs, where a
-#: channel 19-55 % lower in its band on 5-17 effective samples is noise (120 diagnoses of the
-#: false-alarm grid's 3-joint logs: such terms' p 0.64-1, eight lines without this level; the nine
-#: clean 10x4 logs: none) against the 10-joint neck's hidden hinges (p 0.01 and 0.072 on the
+#: channel 19-55 % lower in its band on 5-17 effective samples is noise (the false-alarm grid's
+#: 120 diagnoses of clean 3-joint logs: 13 such lines without this level, their p 0.64-1; the
+#: nine clean 10x4 logs: none) against the 10-joint neck's hidden hinges (p 0.01 and 0.072 on the
 #: 15.6 and 30.8 s logs that a longer log names; a third, p 1, is not reported).
 UNDECIDED_P = 0.1
 
