@@ -38,6 +38,8 @@ elastic model's f_s, a model-form term: see ``identification.paper.calibrated_un
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Collection
 
@@ -263,15 +265,19 @@ def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | Non
     rate = prep.motor_rate_hz / prep.decimation
     sigma = float(params.sensors.camera_noise) * scale
     fast = prep.fast
-    reps: dict = {}
-    for _ in range(n):
-        m = Measurements(fast.t, fast.theta, fast.force, tc, clean + sigma * rng.standard_normal(clean.shape))
-        p = prepare(m, params, fixed, camera_rate_hz=rate, reuse=prep)
+    frames = [clean + sigma * rng.standard_normal(clean.shape) for _ in range(n)]     # drawn in order
+
+    def one(alpha_camera: np.ndarray) -> dict:
+        p = prepare(Measurements(fast.t, fast.theta, fast.force, tc, alpha_camera), params, fixed,
+                    camera_rate_hz=rate, reuse=prep)
         if p.n_samples != prep.n_samples:
             raise RuntimeError("camera noise bootstrap: the replicate's grid differs from the log's")
-        for name, v in refit(p, params, taut, weight=weight, models=models).items():
-            reps.setdefault(name, []).append(v)
-    return {k: np.asarray(v) for k, v in reps.items()}
+        return refit(p, params, taut, weight=weight, models=models)
+
+    # the replicates are independent and their compiled kernels and BLAS release the GIL
+    with ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1)) as pool:
+        values = list(pool.map(one, frames))
+    return {k: np.asarray([v[k] for v in values]) for k in values[0]} if values else {}
 
 
 def calibrate(ls: LSResult, W: np.ndarray, rows: np.ndarray, n_samples: int,
