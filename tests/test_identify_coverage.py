@@ -101,3 +101,31 @@ def test_damping_is_reported_as_not_identified(identified):
     # here, 87 % over the benchmark's 30 seeds); the log never loses most of them
     ok = np.array([u["variable"].group("identified", "lambda") for u in runs])
     assert ok.mean() >= 0.8 and ok.sum(axis=1).min() >= 2, ok
+
+
+def test_the_threaded_bootstrap_is_the_replicates_run_one_after_another(quiet_run):
+    """The camera-noise bootstrap runs its replicates in threads: its values are, bit for bit and in
+    the order drawn, those of the replicates prepared and refitted one after another here (fresh
+    frames around the log's filtered camera angles, the motors' cutoff fixed, prepare's reuse)."""
+    from identification.preprocessing import Measurements, PreprocessSettings, prepare
+    from identification.uncertainty import camera_noise_bootstrap, refit
+
+    m, p = quiet_run
+    prep = prepare(Measurements(m.t_motor, m.theta, m.force, m.t_camera, m.alpha_camera), p)
+    settings = PreprocessSettings()
+    models = ("friction", "elastic")
+    got = camera_noise_bootstrap(prep, p, None, weight=1.0, models=models, settings=settings, n=3, seed=5,
+                                 second_order=False)
+    rng = np.random.default_rng(5)
+    tc, _ = prep.camera
+    clean = np.stack([np.interp(tc, prep.t, prep.alpha[:, j]) for j in range(p.n_joints)], axis=1)
+    fixed = PreprocessSettings(motor_cutoff_hz=prep.cutoffs["motors"].hz)
+    rate = prep.motor_rate_hz / prep.decimation
+    serial = []
+    for _ in range(3):
+        frames = clean + float(p.sensors.camera_noise) * rng.standard_normal(clean.shape)
+        rep = prepare(Measurements(prep.fast.t, prep.fast.theta, prep.fast.force, tc, frames), p, fixed,
+                      camera_rate_hz=rate, reuse=prep)
+        serial.append(refit(rep, p, None, weight=1.0, models=models))
+    for name in models:
+        np.testing.assert_array_equal(got[name].at_1x, np.asarray([v[name] for v in serial]))
