@@ -8,7 +8,6 @@ from typing import ClassVar
 import numpy as np
 
 from neck_sim.effects.base import MotorEffect
-from neck_sim.lazy import lazy_attributes
 from neck_sim.params import NeckParams
 from neck_sim.validation import finite, indices, per_item
 
@@ -16,9 +15,7 @@ __all__ = ["DryFriction"]
 
 # eq (37) is neck_sim.analytic.dynamics.arctan_friction, imported where it is used: the analytic
 # model loads numba (0.3-0.9 s), which importing the vocabulary (its classes, their validation and
-# apply) does not need.  This module's name for it stays, loaded on first access.
-__getattr__, __dir__ = lazy_attributes(__name__, {"arctan_friction": "neck_sim.analytic.dynamics"},
-                                       [*__all__, "arctan_friction"])
+# apply) does not need.
 
 
 @dataclass(frozen=True)

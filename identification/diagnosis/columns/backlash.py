@@ -6,6 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from neck_sim.analytic.dynamics import arctan_friction
 from neck_sim.effects import Backlash
 from neck_sim.jit import kernel
 
@@ -97,8 +98,6 @@ class BacklashColumns(EffectColumns):
             return None
 
         def compute():
-            from neck_sim.effects.dry_friction import arctan_friction
-
             motor = data.theta_fast / data.ratio                                     # m of cable
             lead = motor_lead(motor, bands)
             acc = np.gradient(np.gradient(lead, data.dt, axis=0), data.dt, axis=0)
