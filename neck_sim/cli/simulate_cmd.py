@@ -108,16 +108,15 @@ def _check_options(args, controller: str) -> None:
         raise ValueError("--table3 runs one law (give a single --law)")
 
 
-def _left_range(exc: RuntimeError) -> str:
-    """The message of a run stopped because its neck left the joint range; "" for any other failure."""
+def _left_range(exc: RuntimeError, args) -> RuntimeError | None:
+    """A run stopped because its neck left the joint range: its message with what to do about it;
+    None for any other failure."""
     from neck_sim.joint_range import JointRangeError
-    return str(exc) if isinstance(exc.__cause__, JointRangeError) else ""
-
-
-def _what_to_do(args) -> str:
+    if not isinstance(exc.__cause__, JointRangeError):
+        return None
     lighter = f"smaller --effect values than {' '.join(args.effect)}, " if args.effect else ""
-    return (f"; no log written: try {lighter}slower moves (a larger --duration-scale than {args.duration_scale:g}) "
-            "or another --trajectory")
+    return RuntimeError(f"{exc}; no log written: try {lighter}slower moves (a larger --duration-scale than "
+                        f"{args.duration_scale:g}) or another --trajectory")
 
 
 def _plant_factory(effects, timestep):
@@ -174,8 +173,8 @@ def run(args: argparse.Namespace) -> int:
                                 seed=args.seed, controller_kwargs=kwargs, plant_factory=factory,
                                 stop_outside_range=True)
         except RuntimeError as exc:
-            if _left_range(exc):
-                raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
+            if (left := _left_range(exc, args)) is not None:
+                raise left from exc
             raise
         labelled = {f"{kind} cables, {'pulleys' if pul else 'no pulleys'}": res for (kind, pul), res in results.items()}
         print(ex.format_control_table(labelled, compare_with_paper=False))
@@ -191,8 +190,8 @@ def run(args: argparse.Namespace) -> int:
                 controller=controller, plant_factory=factory, stop_outside_range=True)
         except RuntimeError as exc:
             if controller != "computed-torque" or args.rigid_cables or params.n_joints < 6:
-                if _left_range(exc):
-                    raise RuntimeError(_left_range(exc) + _what_to_do(args)) from exc
+                if (left := _left_range(exc, args)) is not None:
+                    raise left from exc
                 raise
             # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
             raise RuntimeError(f"{exc} (on elastic cables the paper's laws lose necks of 6 or more joints: "
