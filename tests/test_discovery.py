@@ -25,6 +25,8 @@ no alpha_hat) takes 1-3 s.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -133,6 +135,10 @@ def test_paper_story_from_a_rigid_frictionless_model(blind):
     law = np.asarray(fs) * (2 / np.pi) * np.arctan(_param(f1, "c_s") * speed)
     travel = [_param(f1, f"f_travel({i + 1})") for i in range(4)]
     np.testing.assert_allclose(travel, (law * speed).sum(axis=0) / speed.sum(axis=0), rtol=1e-9)
+    # its sigma is f_s's eq (50) sigma scaled, and the summary labels it so, as it labels f_s
+    from identification.diagnosis.report import format_summary
+    summary = format_summary(diag)
+    assert all(re.search(rf"f_travel\({i + 1}\) = \S+ ± \S+ N \(eq 50\)", summary) for i in range(4)), summary
     a0 = diag.baseline.alpha_hat_vs_camera.holdout.mean_abs_deg
     a1 = diag.final.alpha_hat_vs_camera.holdout.mean_abs_deg
     assert a1 < 0.75 * a0

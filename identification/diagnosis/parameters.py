@@ -20,8 +20,15 @@ EQ50_NOTE = "sigma: eq (50) of the weighted fit (independent residuals), not cal
 #: A magnitude corrected for the camera's angle noise (``errors_in_variables.corrected_parameters``).
 SIMEX_NOTE = ("corrected for the camera's angle noise by simulation-extrapolation (errors_in_variables.py); "
               "sigma: eq (50) of the weighted fit, one noise realization's spread, the extrapolation's and its form's")
-#: How the summary labels a value by its note.
+#: How the summary labels a value by its note (:func:`note_label`).
 NOTE_LABELS = {EQ50_NOTE: " (eq 50)", SIMEX_NOTE: " (SIMEX)"}
+
+
+def note_label(note: str) -> str:
+    """The summary's label of a value whose note is, or ends with, one of :data:`NOTE_LABELS`'
+    notes (a derived parameter's note ends with the note of the sigma it was scaled from); ""
+    otherwise."""
+    return next((label for known, label in NOTE_LABELS.items() if note.endswith(known)), "")
 
 
 @dataclass(frozen=True)
@@ -144,7 +151,9 @@ def term_parameters(ctx: StepContext, cand: CandidateScore) -> dict[str, Paramet
     fitted = {n: (p.value, p.sigma) for n, p in out.items()}
     derived = term.identification.derived_parameters(ctx.data.theta_dot_fast, fitted, dict(term.shape))
     for n, (value, sigma, unit, note) in derived.items():     # e.g. dry friction's f_travel
-        out[n] = Parameter(float(value), None if sigma is None else float(sigma), unit, note)
+        # its sigma is scaled from the fitted ones: their note says how those were made
+        out[n] = Parameter(float(value), None if sigma is None else float(sigma), unit,
+                           note if sigma is None else f"{note}; {EQ50_NOTE}")
     return out
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from identification.diagnosis.materiality import undecided_lines
 from identification.diagnosis.result import method_text
-from identification.diagnosis.parameters import NOTE_LABELS
+from identification.diagnosis.parameters import note_label
 from neck_sim.effects import INSUFFICIENT_EXCITATION, UNEXPLAINED
 
 __all__ = ["write_report", "format_summary"]
@@ -43,7 +43,7 @@ def _param_text(params: dict) -> str:
     for name, p in params.items():
         unit = "" if p.unit in ("-", "") else f" {p.unit}"
         parts.append(f"{name} = {_fmt(p.value)}" + (f" ± {_fmt(p.sigma, digits=2)}" if p.sigma is not None else "")
-                     + unit + NOTE_LABELS.get(p.note, ""))
+                     + unit + note_label(p.note))
     return "; ".join(parts)
 
 
