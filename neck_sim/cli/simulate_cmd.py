@@ -9,6 +9,11 @@ at the first recorded sample out of range (``stop_outside_range`` of
 angle, exit status 2 and no log.  Refused rather than logged under a flag: outside the range the
 paper's model no longer describes the neck, the log contract refuses such angles and
 ``neck-sim check`` cannot evaluate them, so the log would serve no later command.
+
+Several runs (``--law 1 2 3``, ``--table3``) are all or nothing: every log path is checked before
+the first run, the logs are written under temporary names beside their targets and published
+together when the last run has succeeded (:class:`_StagedLogs`), so a run refused after others
+have finished leaves no log of the command, and a file that was at a log's path stays as it was.
 """
 
 from __future__ import annotations
@@ -106,17 +111,102 @@ def _check_options(args, controller: str) -> None:
                              f"feedback and tensions: drop {', '.join(given)}")
     if args.table3 and len(args.law or [2]) != 1:
         raise ValueError("--table3 runs one law (give a single --law)")
+    twice = sorted({law for law in args.law or [] if args.law.count(law) > 1})
+    if twice:
+        raise ValueError(f"--law {' '.join(map(str, args.law))}: law {twice[0]} given twice (each law runs once)")
 
 
-def _left_range(exc: RuntimeError, args) -> RuntimeError | None:
+def _log_labels(args, controller: str, laws: list[int]) -> dict[str, str]:
+    """The labels :func:`controllers.experiments.control_tests` and ``table3`` give their runs'
+    logs, in run order, each with the run's name for the user."""
+    from controllers.experiments import TABLE3_CASES
+    if args.table3:
+        return {f"{kind}-{'pulleys' if pulleys else 'no-pulleys'}": f"the {kind}-cable run "
+                f"{'with' if pulleys else 'without'} pulleys" for kind, pulleys in TABLE3_CASES}
+    if controller != "computed-torque":
+        return {controller: controller}
+    return {f"law{int(law)}": f"law {int(law)}" for law in laws}
+
+
+class _StagedLogs:
+    """The ``log_path`` of the command's runs: each log is written (atomically, by its LogWriter)
+    under a temporary name beside its target, and :meth:`publish` moves them all to their names
+    once every run has succeeded; :meth:`discard` removes them after a refusal.  ``namer`` None
+    (``--no-log``): no log; the labels are recorded either way (``labels``: the runs started, the
+    last one under way)."""
+
+    def __init__(self, namer) -> None:
+        self.namer, self.staged, self.labels = namer, {}, []      # staged: temporary -> target
+
+    def __call__(self, label: str) -> str | None:
+        from neck_sim.atomic import temp_file_beside
+        self.labels.append(label)
+        if self.namer is None:
+            return None
+        target = self.namer(label)
+        fd, tmp = temp_file_beside(target)
+        os.close(fd)
+        self.staged[tmp] = target
+        return tmp
+
+    def publish(self, labelled: dict) -> dict:
+        """Every log under its name; ``labelled``'s results with their log paths renamed too."""
+        import dataclasses
+
+        from neck_sim.atomic import publish
+        for tmp, target in self.staged.items():
+            publish(tmp, target)
+        names, self.staged = self.staged, {}
+        return {label: dataclasses.replace(res, log_path=names.get(res.log_path, res.log_path))
+                for label, res in labelled.items()}
+
+    def discard(self) -> None:
+        from neck_sim.atomic import discard
+        for tmp in self.staged:
+            discard(tmp)
+        self.staged.clear()
+
+    def named(self, text: str) -> str:
+        """``text`` with the temporary names replaced by the logs' names."""
+        for tmp, target in self.staged.items():
+            text = text.replace(tmp, target)
+        return text
+
+
+def _left_range(exc: RuntimeError, args) -> str | None:
     """A run stopped because its neck left the joint range: its message with what to do about it;
     None for any other failure."""
     from neck_sim.joint_range import JointRangeError
     if not isinstance(exc.__cause__, JointRangeError):
         return None
     lighter = f"smaller --effect values than {' '.join(args.effect)}, " if args.effect else ""
-    return RuntimeError(f"{exc}; no log written: try {lighter}slower moves (a larger --duration-scale than "
-                        f"{args.duration_scale:g}) or another --trajectory")
+    return (f"{exc}; no log written: try {lighter}slower moves (a larger --duration-scale than "
+            f"{args.duration_scale:g}) or another --trajectory")
+
+
+def _refusal(exc: BaseException, args, controller: str, n_joints: int, staged: _StagedLogs,
+             names: dict[str, str]) -> BaseException:
+    """The one line for a failed run (``exc`` itself when there is nothing to add): the logs'
+    names, not their temporary ones; what to do about it; and, of several runs, the one that
+    failed and those whose logs are discarded with it."""
+    if not isinstance(exc, (RuntimeError, OSError)):
+        return exc
+    text = staged.named(str(exc))
+    if isinstance(exc, RuntimeError):
+        if controller == "computed-torque" and not args.table3 and not args.rigid_cables and n_joints >= 6:
+            # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
+            text += " (on elastic cables the paper's laws lose necks of 6 or more joints: try --controller elastic-lqr)"
+        else:
+            text = _left_range(exc, args) or text
+    ran = [names.get(label, label) for label in staged.labels]
+    if len(names) > 1 and ran:
+        done = ", ".join(ran[:-1])
+        text = f"{ran[-1]}: {text}" if not done else f"{ran[-1]}, run after {done}: {text}"
+        if done and staged.namer is not None:
+            text += f"; the log of {done} is discarded too (all runs or no log)"
+    if text == str(exc):
+        return exc
+    return type(exc)(text) if isinstance(exc, OSError) else RuntimeError(text)
 
 
 def _plant_factory(effects, timestep):
@@ -167,35 +257,39 @@ def run(args: argparse.Namespace) -> int:
     print(f"{traj.name} trajectory: {traj.duration:g} s at {params.control.rate_hz:g} Hz, N = {params.n_joints}"
           + ("" if params.n_cables == params.n_joints + 1 else f", {params.n_cables} cables"))
 
-    if args.table3:
-        try:
-            results = ex.table3(params, traj, laws[0], log_path=_log_namer(args, name, True), progress=progress,
-                                seed=args.seed, controller_kwargs=kwargs, plant_factory=factory,
-                                stop_outside_range=True)
-        except RuntimeError as exc:
-            if (left := _left_range(exc, args)) is not None:
-                raise left from exc
+    names = _log_labels(args, controller, laws)
+    namer = _log_namer(args, name, len(names) > 1)
+    if namer is not None and args.output and len(names) > 1:
+        # every run's log path, refused before the first run rather than after the others
+        check_paths(inputs={"--params": args.params}, dirs={"--plots": args.plots}, contents=figures,
+                    files={"--json": args.json, **{f"-o ({label})": namer(label) for label in names}})
+    staged = _StagedLogs(namer)
+    try:
+        if args.table3:
+            results = ex.table3(params, traj, laws[0], log_path=staged, progress=progress, seed=args.seed,
+                                controller_kwargs=kwargs, plant_factory=factory, stop_outside_range=True)
+        else:
+            ctrl_params = params.replace(**{"geometry.r": 0.0}) if args.no_pulleys else params
+            labelled = ex.control_tests(
+                params, traj, laws, log_path=staged, progress=progress, seed=args.seed, rigid_cables=args.rigid_cables,
+                controller_params=ctrl_params, controller_kwargs=kwargs, controller=controller, plant_factory=factory,
+                stop_outside_range=True)
+        if args.table3:
+            results = staged.publish(results)
+        else:
+            labelled = staged.publish(labelled)
+    except BaseException as exc:
+        refusal = _refusal(exc, args, controller, params.n_joints, staged, names)
+        staged.discard()
+        if refusal is exc:
             raise
+        raise refusal from exc
+    if args.table3:
         labelled = {f"{kind} cables, {'pulleys' if pul else 'no pulleys'}": res for (kind, pul), res in results.items()}
         print(ex.format_control_table(labelled, compare_with_paper=False))
         print()
         print(ex.format_table3(results))
     else:
-        ctrl_params = params.replace(**{"geometry.r": 0.0}) if args.no_pulleys else params
-        several = len(laws) > 1 and controller == "computed-torque"
-        try:
-            labelled = ex.control_tests(
-                params, traj, laws, log_path=_log_namer(args, name, several), progress=progress,
-                seed=args.seed, rigid_cables=args.rigid_cables, controller_params=ctrl_params, controller_kwargs=kwargs,
-                controller=controller, plant_factory=factory, stop_outside_range=True)
-        except RuntimeError as exc:
-            if controller != "computed-torque" or args.rigid_cables or params.n_joints < 6:
-                if (left := _left_range(exc, args)) is not None:
-                    raise left from exc
-                raise
-            # README, Known limitations: the paper's laws do not damp long necks' cable-motor-gravity mode
-            raise RuntimeError(f"{exc} (on elastic cables the paper's laws lose necks of 6 or more joints: "
-                               "try --controller elastic-lqr)") from exc
         # the paper's §7 numbers only make sense beside the same experiment
         same = (name == "control-test" and args.duration_scale == 1.0 and not args.rigid_cables
                 and not args.no_pulleys and params.n_joints == 3 and not kwargs and not args.params and not lqr
