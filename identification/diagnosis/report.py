@@ -112,19 +112,19 @@ def format_summary(diag) -> str:
 
 
 def resimulation_line(before, after) -> str:
-    """The summary's line on the held-out re-simulation of the baseline (``before``) and the final
-    model (``after``), both :class:`~identification.diagnosis.resimulation.Resimulation`: their
-    errors, or, when every block of both diverged, that the check says nothing (the errors then
-    cover only each block's run-up to its divergence)."""
+    """The summary's line on the held-out re-simulation of the baseline ``before`` and the final model ``after``
+    (:class:`~identification.diagnosis.resimulation.Resimulation`): their errors; no comparison when every block of
+    both diverged (the errors cover only each block's run-up) or when no finding made ``after`` ``before`` itself."""
     if before.diverged_everywhere and after.diverged_everywhere:
         return (f"  re-simulation, held out: no comparison: open loop, the logged forces drive both models out of "
                 f"their valid range in every block ({before.n_diverged} of {before.n_blocks}); the verdict rests "
                 f"on the fitted residuals alone")
     status = before.status if before.status == after.status else f"{before.status} / {after.status}"
-    return (f"  re-simulation, held out: theta RMS {_vec(before.holdout.theta_rms_rad)} -> "
-            f"{_vec(after.holdout.theta_rms_rad)} rad; alpha mean |error| "
-            f"{_fmt(before.holdout.alpha_mean_abs_deg, digits=3)} -> "
-            f"{_fmt(after.holdout.alpha_mean_abs_deg, digits=3)} deg ({status})")
+    (b, bd), (a, ad) = ((_vec(x.holdout.theta_rms_rad), _fmt(x.holdout.alpha_mean_abs_deg, digits=3)) for x in (before, after))
+    if after is before:                    # no model was extended: nothing to compare the baseline with
+        return (f"  re-simulation, held out, of the baseline alone (no model was extended, no comparison): theta RMS "
+                f"{b} rad; alpha mean |error| {bd} deg ({status})")
+    return f"  re-simulation, held out: theta RMS {b} -> {a} rad; alpha mean |error| {bd} -> {ad} deg ({status})"
 
 
 def margin_text(diag) -> str:
