@@ -5,8 +5,6 @@ not print a comparison when no model was extended."""
 
 import os
 import re
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -70,34 +68,49 @@ def test_several_runs_publish_every_log_under_its_name(tmp_path, capsys):
         assert read_log(path, topics=["motors"]).run_value("law") == int(label[-1])
 
 
-def test_a_live_run_that_leaves_the_joint_range_is_refused_and_closes_its_server(tmp_path):
+def test_a_live_run_that_leaves_the_joint_range_is_refused_and_closes_its_server(tmp_path, capsys, monkeypatch):
     """The 10x4 neck with 50 g at the head, fast identification run (it leaves the range at about
-    5 s of simulated time), served live: exit 2 with the range refusal in one line, no log, and the
-    client sees the server close (the process ends: no thread keeps it alive)."""
+    5 s of simulated time), served live: exit 2 with the range refusal in one line, no log; the
+    client, connected while the run went on, sees the server close at once, its port is free again
+    and no thread of the command is left."""
     pytest.importorskip("foxglove")
     pytest.importorskip("websockets")
+    import socket
+    import threading
+
+    from neck_sim.live import LiveView
     from test_live import receive
 
     save(example_params("neck10x4"), tmp_path / "p10.toml")
-    proc = subprocess.Popen([sys.executable, "-m", "neck_sim.cli", "simulate", "--live", "--live-port", "0",
-                             "--live-pace", "fast", "--params", str(tmp_path / "p10.toml"), "--trajectory",
-                             "identification", "--effect", "payload=0.05", "--duration-scale", "0.1",
-                             "--no-progress", "-o", str(tmp_path / "run.mcap")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=os.getcwd())
-    try:
-        line = proc.stdout.readline()
-        assert line.startswith("live view: ws://127.0.0.1:"), line + proc.stderr.read()
-        start = time.monotonic()
-        _, got = receive(line.split()[2], seconds=120)
-        closed_after = time.monotonic() - start
-        _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == 2 and err.count("\n") == 1, err
+    def lasting():         # the threads that keep a process alive (tqdm's monitor is a daemon)
+        return {t for t in threading.enumerate() if not t.daemon}
+
+    threads = lasting()
+    box: dict = {}
+    wait = LiveView.wait_for_client
+
+    def connect_then_wait(view, poll=0.2):            # a viewer connects as the command starts waiting
+        box["port"] = int(view.url.rsplit(":", 1)[1])
+        box["client"] = threading.Thread(target=lambda: box.update(got=receive(view.url, seconds=90)[1],
+                                                                   closed=time.monotonic()))
+        box["client"].start()
+        wait(view, poll)
+
+    monkeypatch.setattr(LiveView, "wait_for_client", connect_then_wait)
+    code = main(["simulate", "--live", "--live-port", "0", "--live-pace", "fast", "--params", str(tmp_path / "p10.toml"),
+                 "--trajectory", "identification", "--effect", "payload=0.05", "--duration-scale", "0.1",
+                 "--no-progress", "-o", str(tmp_path / "run.mcap")])
+    returned = time.monotonic()
+    err = capsys.readouterr().err
+    box["client"].join(90)
+    assert code == 2 and err.count("\n") == 1, err
     assert "the neck left its joint range" in err and "no log written" in err, err
-    assert closed_after < 110, closed_after             # the server closed: the client did not time out
-    truth = np.array([m["t"] for _, _, m in got["/neck/truth"]])
+    assert box["closed"] - returned < 5.0                # the server closed the connection, no time-out
+    truth = np.array([m["t"] for _, _, m in box["got"]["/neck/truth"]])
     assert truth.size > 100 and truth[-1] > 1.0          # the run was served until it was stopped
+    with socket.socket() as probe:                        # nothing listens on the view's port any more
+        assert probe.connect_ex(("127.0.0.1", box["port"])) != 0
+    assert lasting() == threads
     assert sorted(os.listdir(tmp_path)) == ["p10.toml"]
 
 
