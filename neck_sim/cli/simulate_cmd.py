@@ -203,7 +203,8 @@ def _refusal(exc: BaseException, args, controller: str, n_joints: int, staged: _
         done = ", ".join(ran[:-1])
         text = f"{ran[-1]}: {text}" if not done else f"{ran[-1]}, run after {done}: {text}"
         if done and staged.namer is not None:
-            text += f"; the log of {done} is discarded too (all runs or no log)"
+            text += (f"; the log{'s' if len(ran) > 2 else ''} of {done} {'are' if len(ran) > 2 else 'is'} discarded "
+                     "too (all runs or no log)")
     if text == str(exc):
         return exc
     return type(exc)(text) if isinstance(exc, OSError) else RuntimeError(text)
