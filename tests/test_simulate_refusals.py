@@ -34,6 +34,18 @@ def test_a_later_law_refused_in_its_run_discards_the_earlier_logs(tmp_path, caps
     assert _files(tmp_path) == before
 
 
+def test_table3_refused_in_its_second_run_writes_nothing(tmp_path, capsys):
+    """Table 3 with 1.5 kg at the head and fast moves: the rigid-cable run with pulleys ends, the
+    identified-cable one loses its estimate at 2.05 s.  Exit 2, one line naming both runs, no log."""
+    code = main(["simulate", "--table3", "--effect", "payload=1.5", "--duration-scale", "0.1", "--no-progress",
+                 "-o", str(tmp_path / "t3.mcap")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "error: the identified-cable run with pulleys, run after the rigid-cable run with pulleys: " in err, err
+    assert "the log of the rigid-cable run with pulleys is discarded too" in err
+    assert os.listdir(tmp_path) == []
+
+
 def test_every_runs_log_path_is_checked_before_the_first_run(tmp_path, capsys):
     """Law 1's log path read-only, or law 2's the --json output: refused before law 2 (the first)
     runs, naming the run's path; a law given twice is refused."""
