@@ -43,6 +43,9 @@ def control_test_diag(control_test_log):
 def test_clean_control_test_log_gives_none(control_test_diag):
     assert control_test_diag.verdict == "none", control_test_diag.to_dict()["margins"]
     assert not control_test_diag.findings and not control_test_diag.leftover.significant
+    from identification.diagnosis.report import format_summary
+    (line,) = [x for x in format_summary(control_test_diag).splitlines() if "alpha_hat vs camera" in x]
+    assert "->" not in line and "no model was extended" in line, line     # one model: nothing compared
 
 
 def test_clean_multisine_log_gives_none(tmp_path):

@@ -98,8 +98,8 @@ def format_summary(diag) -> str:
         return "\n".join(lines + [f"  note: {n}" for n in diag.notes])
     b, a = diag.baseline.alpha_hat_vs_camera, diag.final.alpha_hat_vs_camera
     if b and a:
-        lines.append(f"  alpha_hat vs camera, held out, mean |error|: {b.holdout.mean_abs_deg:.2f} deg -> "
-                     f"{a.holdout.mean_abs_deg:.2f} deg")
+        lines.append(f"  alpha_hat vs camera, held out, mean |error|: {b.holdout.mean_abs_deg:.2f} deg"   # one model: no arrow
+                     + (" (the baseline; no model was extended)" if a is b else f" -> {a.holdout.mean_abs_deg:.2f} deg"))
     b, a = diag.baseline.resimulation, diag.final.resimulation
     if b and a:
         lines.append(resimulation_line(b, a))
