@@ -24,10 +24,11 @@ estimators that differ only in those choices, each of them defensible on its own
 
 The form error is half the range of these estimates and the fitted size
 (:func:`form_error`), added in quadrature to eq (50)'s sigma and labelled as such
-(``parameters.FORM_NOTE``).  It covers the fitted size's error on the 8 named hinge logs (within
-1.6 sigma; docs/your-own-neck.md, section 7); no estimator of the set is within 10 % on all of
-them, so the fitted size is kept and its sigma widened.  The 3-joint neck (C >= N: the encoders'
-speed, the column not projected) is left as it was.
+(``parameters.FORM_NOTE``).  On the 8 blind logs that name a hinge the hidden size lies within
+1.52 of that sigma (eq 50's alone: up to 3.1), the sigma 6-27 % of the value (docs/your-own-neck.md,
+section 7); no estimator of the set is within 10 % on all of them, so the fitted size is kept
+and its sigma widened.  The 3-joint neck (C >= N: the encoders' speed, the column not projected)
+is left as it was.
 
     >>> from identification.diagnosis.hinge_size import size_estimates, form_error
     >>> est = size_estimates(r, lever, speed, train, rate_hz=31.25, common_hz=2.75)    # doctest: +SKIP
