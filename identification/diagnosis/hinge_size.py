@@ -25,10 +25,10 @@ estimators that differ only in those choices, each of them defensible on its own
 The size reported is the middle of the range of these estimates and the fitted size
 (:func:`interval`), the form error half that range, added in quadrature to eq (50)'s sigma and
 labelled as such (``parameters.FORM_NOTE``).  No estimator of the set is within 10 % of the hidden
-size on all of the blind logs; the range's middle is on seeds 1-3 at 59.3 and 118 s (-2.9 % to
-+8.6 %, the fit -8.6 % to +26 %), and on 4 of 5 fresh seeds' 59.3 s logs (the fit on 2; one
-misses by +39 %, the fit by +33 %).  The hidden size lies within 1.34 of the sigma on the 13 blind
-logs that name a hinge (eq 50's alone, about the fit: up to 3.1), the sigma 6-33 % of the
+size on all of the blind logs; the range's middle is on seeds 1-3 at 59.3 and 118 s (-3.0 % to
++8.7 %, the fit -8.6 % to +26 %), and on 4 of 5 fresh seeds' 59.3 s logs (the fit on 2; one
+misses by +39 %, the fit by +33 %).  The hidden size lies within 1.33 of the sigma on the 13 blind
+logs that name a hinge (eq 50's alone, about the fit: up to 3.1), the sigma 6-34 % of the
 hidden value (docs/your-own-neck.md, section 7).  The 3-joint neck (C >= N: the encoders' speed,
 the column not projected) is left as it was.
 
@@ -45,7 +45,7 @@ import re
 
 import numpy as np
 
-from identification.diagnosis.materiality import in_own_band, project_band
+from identification.diagnosis.materiality import in_own_band, own_band_hz, project_band
 
 __all__ = ["BANDS", "WIDTHS", "SLIDE_SPEED", "band_size", "slide_size", "size_estimates", "interval",
            "hinge_interval"]
@@ -107,7 +107,7 @@ def size_estimates(r: np.ndarray, lever: np.ndarray, speed: np.ndarray, train: n
     band).  ``r`` (S,) N m the joint's torque channel with the hinge's own contribution, the other
     columns at their fit."""
     out = {f"band {f:g}": band_size(r, lever, speed, train, rate_hz, f * common_hz)[0] for f in BANDS}
-    own = 0.5 * common_hz
+    own = own_band_hz(common_hz)
     col = project_band(lever * np.tanh(speed / width), rate_hz, own)
     out["sliding"] = slide_size(r, col, speed, train, rate_hz, own)
     return out
