@@ -30,6 +30,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3 --cases dry_friction --look-alikes --travel
     python benchmarks/bench_any_neck.py --detection --undecided --cases joint_friction none    # + "not decided" lines
+    python benchmarks/bench_any_neck.py --detection --moves 31 --sigma --cases joint_friction  # + value, sigma, note
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction":
 
 
 def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bool = False,
-              travel: bool = False, undecided: bool = False) -> None:
+              travel: bool = False, undecided: bool = False, sigma: bool = False) -> None:
     from open_world.generator import make_spec, simulate_reachable
 
     from identification.diagnosis import DiagnosisSettings, diagnose_log
@@ -102,6 +103,8 @@ def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bo
             print(f"{name:16} {seed:4d}  {spec.description:48} {verdict:28} {where:>8} {est:10.4g} "
                   f"{spec.magnitude:9.4g}  {_candidate_fit(diag, spec)}{_resolved_pair(path, diag, spec)}",
                   flush=True)
+            if sigma and diag.findings and spec.symbol in diag.findings[0].parameters:
+                print(f"    {_sigma_line(diag.findings[0].parameters[spec.symbol], spec)}", flush=True)
             if travel and name == "dry_friction" and diag.findings:
                 print(f"    {_travel_line(diag, spec)}", flush=True)
             if look_alikes:
@@ -139,6 +142,17 @@ def _candidate_fit(diag, spec) -> str:
         return (f"{c.fit.value[i]:.4g} +- {c.fit.sigma[i]:.2g} (p {c.p_train:.2g}, {c.p_holdout:.2g}; "
                 f"improvement {100 * c.improvement:.1f} %; top {names[top]}{form})")
     return ""
+
+
+def _sigma_line(p, spec) -> str:
+    """A named finding's hidden parameter ``p`` with its sigma and label as the report prints them
+    (a hinge's includes its form error, ``identification/diagnosis/hinge_size.py``), its error
+    against the hidden magnitude in sigmas and its sigma relative to its value."""
+    from identification.diagnosis.parameters import note_label
+
+    return (f"{spec.symbol} = {p.value:.4g} +- {p.sigma:.2g} {p.unit}{note_label(p.note)}: error "
+            f"{100 * (p.value / spec.magnitude - 1):+.1f} % = {(p.value - spec.magnitude) / p.sigma:+.2f} sigma, "
+            f"sigma / value {p.sigma / abs(p.value):.2f}; {p.note}")
 
 
 def _travel_line(diag, spec) -> str:
@@ -199,6 +213,8 @@ def main(argv=None) -> int:
                     help="--detection: print the report's look-alike lines (alternatives, what would separate them)")
     ap.add_argument("--travel", action="store_true",
                     help="--detection: for dry friction, print f_travel against the hidden law's travel mean")
+    ap.add_argument("--sigma", action="store_true",
+                    help="--detection: print the named finding's hidden parameter with its sigma and note")
     ap.add_argument("--undecided", action="store_true",
                     help="--detection: also print the summary's lines on one-joint terms the log is too short "
                          "to decide")
@@ -212,7 +228,8 @@ def main(argv=None) -> int:
     directory = args.dir or tmp.name
     os.makedirs(directory, exist_ok=True)
     if args.detection:
-        detection(directory, args.seeds, args.moves, args.cases, args.look_alikes, args.travel, args.undecided)
+        detection(directory, args.seeds, args.moves, args.cases, args.look_alikes, args.travel, args.undecided,
+                  args.sigma)
         if tmp is not None:
             tmp.cleanup()
         return 0

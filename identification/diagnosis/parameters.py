@@ -20,8 +20,10 @@ EQ50_NOTE = "sigma: eq (50) of the weighted fit (independent residuals), not cal
 #: A magnitude corrected for the camera's angle noise (``errors_in_variables.corrected_parameters``).
 SIMEX_NOTE = ("corrected for the camera's angle noise by simulation-extrapolation (errors_in_variables.py); "
               "sigma: eq (50) of the weighted fit, one noise realization's spread, the extrapolation's and its form's")
+#: A hinge friction's size on a neck with fewer cables than joints (``hinge_size.hinge_interval``).
+FORM_NOTE = "sigma: eq (50) of the weighted fit and the form error in quadrature"
 #: How the summary labels a value by its note (:func:`note_label`).
-NOTE_LABELS = {EQ50_NOTE: " (eq 50)", SIMEX_NOTE: " (SIMEX)"}
+NOTE_LABELS = {EQ50_NOTE: " (eq 50)", SIMEX_NOTE: " (SIMEX)", FORM_NOTE: " (includes form error)"}
 
 
 def note_label(note: str) -> str:

@@ -14,7 +14,7 @@ from neck_sim.params import NeckParams
 from identification.diagnosis.columns.base import Column, ColumnData, Design, EffectColumns, FitContext, Shape
 from identification.diagnosis.materiality import in_own_band
 
-__all__ = ["JointFrictionColumns", "hinge_lever", "joint_speed_from_encoders"]
+__all__ = ["JointFrictionColumns", "hinge_lever", "camera_hinge_column", "joint_speed_from_encoders"]
 
 
 def hinge_lever(alpha, params: NeckParams) -> np.ndarray:
@@ -22,6 +22,13 @@ def hinge_lever(alpha, params: NeckParams) -> np.ndarray:
     Coulomb friction in each of the three hinges A, B, D of an X-joint moving (virtual work)."""
     pq = pose_qpos(alpha, params)
     return np.abs(pq.dq_A) + np.abs(pq.dq_B) + np.abs(pq.dq_D)
+
+
+def camera_hinge_column(data: ColumnData, width: float) -> np.ndarray:
+    """(S, N): :func:`hinge_lever` x tanh(alpha_dot / ``width``) on the slow grid, alpha_dot
+    (rad/s) the camera's; ``width`` rad/s.  The hinge's column of a neck with fewer cables than
+    joints before its projection on the own channel's band."""
+    return hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / width)
 
 
 def joint_speed_from_encoders(theta_dot, alpha, params: NeckParams) -> np.ndarray:
@@ -66,8 +73,7 @@ class JointFrictionColumns(EffectColumns):
                 # so the tanh of that speed follows neither the hinge's sign nor its size (joints
                 # 5 and 4 read -41 % and +19 % with the full band, -12 % and +4 % with the plant's
                 # own speed, -8.6 % and +26 % +- 23 % projected on the band)
-                col = hinge_lever(data.alpha, data.params) * np.tanh(data.alpha_dot / shape["width"])
-                return in_own_band(col, data.prep)
+                return in_own_band(camera_hinge_column(data, shape["width"]), data.prep)
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
             speed = joint_speed_from_encoders(data.theta_dot_fast, alpha_fast, data.params)
             fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / shape["width"])
