@@ -41,7 +41,7 @@ from neck_sim.routing import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_
 if TYPE_CHECKING:
     from neck_sim.params import Routing
 
-__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
+__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_terms", "transmission_kernel",
            "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]
 
 
@@ -241,7 +241,21 @@ def cable_kinematics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: Nec
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     seg = _evaluate(a, params, (0, 1, 2))
-    return CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params) * ad[..., :, None])
+    return CableKinematics(_lengths(a, params, seg[0]), *_z_and_dot(seg, ad, params))
+
+
+def transmission_terms(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                       allow_outside_range: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(Z (..., N, m) m, Zdot (..., N, m) m/s) of :func:`cable_kinematics` without the lengths
+    (the same arrays, bit for bit; the lengths' segment values cost a third of the pass)."""
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    ad = check_alpha(alpha_dot, params.n_joints, "alpha_dot")
+    return _z_and_dot(_evaluate(a, params, (1, 2)), ad, params)
+
+
+def _z_and_dot(seg: dict, ad: np.ndarray, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
+    """Z and Zdot from the segments' first and second derivatives (``_evaluate`` orders 1, 2)."""
+    return _z(seg[1], params), _z(seg[2], params) * ad[..., :, None]
 
 
 def elongation(theta: npt.ArrayLike, alpha: npt.ArrayLike, params: NeckParams, *,
