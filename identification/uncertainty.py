@@ -49,6 +49,7 @@ import numpy.typing as npt
 from identification import regressors as reg
 from identification.least_squares import LSResult
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
+from identification.threads import single_thread
 from neck_sim.params import NeckParams
 
 __all__ = ["Uncertainty", "Replicates", "row_samples", "andrews_bandwidth", "hac_covariance", "camera_noise_bootstrap",
@@ -274,8 +275,9 @@ def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | Non
             raise RuntimeError("camera noise bootstrap: the replicate's grid differs from the log's")
         return refit(p, params, taut, weight=weight, models=models)
 
-    # the replicates are independent and their compiled kernels and BLAS release the GIL
-    with ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1)) as pool:
+    # the replicates are independent and their compiled kernels and BLAS release the GIL; BLAS
+    # on one thread each (threads.py: its threads would only spin on the (r, 3m) products)
+    with single_thread(), ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1)) as pool:
         values = list(pool.map(one, frames))
     return {k: np.asarray([v[k] for v in values]) for k in values[0]} if values else {}
 
