@@ -125,9 +125,19 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
         raise ValueError(f"residual_cutoff: expected (T >= 32, C) samples, got shape {x.shape}")
     nyq = 0.5 * fs
     fc = np.linspace(0.01, 0.95, n_candidates) * nyq
-    res = _residuals(x, fs, fc, order)
     band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
+    res = np.full((n_candidates, x.shape[1]), np.nan)        # NaN: never read (below)
+    res[band] = _residuals(x, fs, fc, order, np.nonzero(band)[0])
     slope, intercept = np.polyfit(fc[band], res[band], 1)
+    # the other candidates from the lowest up, until every channel's first crossing is among them:
+    # those between the crossings and the band are never read (a third of the camera's candidates)
+    rest = np.nonzero(~band)[0]
+    step = max(1, _LANES // x.shape[1])
+    for k in range(0, rest.size, step):
+        done = (intercept <= 0) | np.any(res[: rest[k]] <= intercept, axis=0)
+        if done.all():
+            break
+        res[rest[k:k + step]] = _residuals(x, fs, fc, order, rest[k:k + step])
     chosen = np.empty(x.shape[1])
     for c in range(x.shape[1]):
         below = np.nonzero(res[:, c] <= intercept[c])[0]
@@ -145,8 +155,8 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
                         tuple(np.maximum(intercept, 0.0).tolist()))
 
 
-def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int) -> np.ndarray:
-    """R(f_c) = rms(x - lowpass(x, f_c)) per candidate and channel, (K, C), for x (T, C).
+def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int, rows: np.ndarray) -> np.ndarray:
+    """R(f_c) = rms(x - lowpass(x, f_c)) per candidate ``fc[rows]`` and channel, (K, C), for x (T, C).
 
     ``np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))`` for every f in ``fc``, bit
     for bit: with two channels or more numpy sums a (T, C) array over axis 0 row after row, as the
@@ -154,11 +164,11 @@ def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int) -> np.ndarr
     candidates, with their designs stacked once per (order, candidates, rate): a bootstrap replicate
     analyses its camera angles again, where 120 calls' set-up cost more than the filtering."""
     if x.shape[1] < 2:
-        return np.stack([np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0)) for f in fc])
+        return np.stack([np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0)) for f in fc[rows]])
     sos, zi, edge = _candidate_designs(int(order), tuple(fc.tolist()), float(fs))
     if x.shape[0] <= edge:
         raise ValueError(f"lowpass: {x.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
-    return _residual_rms(sos, zi, np.ascontiguousarray(x), edge, _LANES)
+    return _residual_rms(sos[rows], zi[rows], np.ascontiguousarray(x), edge, _LANES)
 
 
 #: Independent filter recursions :func:`_residual_rms` runs side by side (a few AVX registers' worth).
