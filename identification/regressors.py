@@ -97,7 +97,7 @@ def _need_camera(prep: Prepared, model: str) -> _Camera:
 def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
     """Z, M, c, g (with the geared motors, eqs 24 and 26 corrected) at the camera's joint angles."""
     cam = _need_camera(prep, "joint dynamics")
-    return analytic_joint_dynamics(cam.alpha, cam.alpha_dot, params)
+    return analytic_joint_dynamics(cam.alpha, cam.alpha_dot, params, transmission=prep.transmission_for(params))
 
 
 def friction_basis(theta_dot: npt.ArrayLike, params: NeckParams) -> np.ndarray:

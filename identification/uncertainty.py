@@ -270,7 +270,7 @@ def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | Non
 
     def one(alpha_camera: np.ndarray) -> dict:
         p = prepare(Measurements(fast.t, fast.theta, fast.force, tc, alpha_camera), params, fixed,
-                    camera_rate_hz=rate, reuse=prep)
+                    camera_rate_hz=rate, reuse=prep, transmission=True)
         if p.n_samples != prep.n_samples:
             raise RuntimeError("camera noise bootstrap: the replicate's grid differs from the log's")
         return refit(p, params, taut, weight=weight, models=models)

@@ -259,11 +259,14 @@ def _z_and_dot(seg: dict, ad: np.ndarray, params: NeckParams) -> tuple[np.ndarra
 
 
 def elongation(theta: npt.ArrayLike, alpha: npt.ArrayLike, params: NeckParams, *,
-               allow_outside_range: bool = False) -> np.ndarray:
-    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
+               allow_outside_range: bool = False, lengths: np.ndarray | None = None) -> np.ndarray:
+    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m.
+
+    ``lengths``: :func:`cable_lengths` of ``alpha`` when the caller has them (``cable_kinematics``)."""
     a = params.actuation
-    return (cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
-            + (a.r_d / a.R) * np.asarray(theta, dtype=float))
+    if lengths is None:
+        lengths = cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
+    return lengths + (a.r_d / a.R) * np.asarray(theta, dtype=float)
 
 
 def motor_angles_rigid(alpha: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None, *,

@@ -238,14 +238,16 @@ class JointDynamics(NamedTuple):
 
 
 def joint_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
-                   allow_outside_range: bool = False) -> JointDynamics:
+                   allow_outside_range: bool = False,
+                   transmission: tuple[np.ndarray, np.ndarray] | None = None) -> JointDynamics:
     """:func:`transmission_matrix`, :func:`mass_matrix`, :func:`bias_forces` (both with motors) and
     :func:`gravity_spring_torque` in one pass, bit for bit: one linkage evaluation (M_m and g do
     not depend on alpha_dot) and one of the cable segments' derivatives, where the four functions
     take three and three (a 10-joint neck's identification computes these on every bootstrap
-    replicate).  alpha, alpha_dot (..., N) rad, rad/s."""
+    replicate).  alpha, alpha_dot (..., N) rad, rad/s; ``transmission``: (Z, Zdot) of these
+    angles and ``params`` when the caller has them (``cable_kinematics``)."""
     lk = linkage_dynamics(alpha, alpha_dot, params, allow_outside_range=allow_outside_range)
-    Z, Zdot = transmission_terms(alpha, alpha_dot, params, allow_outside_range=True)
+    Z, Zdot = transmission or transmission_terms(alpha, alpha_dot, params, allow_outside_range=True)
     return JointDynamics(Z, _with_motor_inertia(lk.M, Z, params), _with_motor_bias(lk.c, Z, Zdot, alpha_dot, params),
                          lk.g)
 
