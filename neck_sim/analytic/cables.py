@@ -131,7 +131,7 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, None, lambda: ddl_r)
     # Case (d), eq (6): psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant
     # length L.  Its mirror d'(alpha) = d(-alpha), with psi(-alpha) = atan2(l_r c, l_r s - b).
-    ddpsi = 0.0                                                       # read only for order 2
+    ddpsi: np.ndarray | float = 0.0                                   # read only for order 2
     if 2 in want:
         ddpsi = _psi_second(alpha, b, L, sides) if jl is None else _psi_derivatives(jl, b, L)[1]
     put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha), None, lambda: 2 * r * ddpsi)
