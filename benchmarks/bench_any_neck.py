@@ -25,6 +25,7 @@ channel's cross-validated improvement; its p values are then that channel's).
 
     python benchmarks/bench_any_neck.py                     # about 6 min on 2 cores (logs made once)
     python benchmarks/bench_any_neck.py --dir /tmp/necks    # keep the logs between runs
+    python benchmarks/bench_any_neck.py --dir /tmp/necks --only identify --repeat 3   # identify alone, 1 min
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3   # 1-2.5 min per case on a shared 2-core machine
     python benchmarks/bench_any_neck.py --detection --moves 16 --cases spring_error none   # 30.8 s logs
     python benchmarks/bench_any_neck.py --detection --moves 31 --cases spring_error none   # 59.3 s logs
@@ -203,6 +204,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--dir", help="directory for the logs (default: a temporary one)")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--only", choices=("identify", "diagnose"),
+                    help="time this one alone (the other's column prints nan)")
     ap.add_argument("--detection", action="store_true", help="the blind diagnosis matrix on the 10x4 neck")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     ap.add_argument("--moves", type=int, default=8,
@@ -237,11 +240,15 @@ def main(argv=None) -> int:
     for neck in NECKS:
         path = make_log(directory, neck)
         log = read_log(path, topics=("motors", "camera"))
-        t_id, res = best(lambda: identify_log(log, IdentificationSettings(reconstruct_alpha=False)), args.repeat)
-        t_dg, diag = best(lambda: diagnose_log(log, settings=DiagnosisSettings(alpha_hat=False), progress=False),
-                          args.repeat)
+        t_id, res, t_dg, verdict = float("nan"), None, float("nan"), "-"
+        if args.only != "diagnose":
+            t_id, res = best(lambda: identify_log(log, IdentificationSettings(reconstruct_alpha=False)), args.repeat)
+        if args.only != "identify":
+            t_dg, diag = best(lambda: diagnose_log(log, settings=DiagnosisSettings(alpha_hat=False), progress=False),
+                              args.repeat)
+            verdict = diag.verdict
         duration = float(log.motors.t[-1] - log.motors.t[0])
-        rows[neck] = (duration, t_id, t_dg, diag.verdict)
+        rows[neck] = (duration, t_id, t_dg, verdict)
         results[neck] = (log.params, res)
     print(f"{'neck':10} {'log (s)':>8} {'identify (s)':>13} {'diagnose (s)':>13}  verdict")
     for neck, (dur, t_id, t_dg, verdict) in rows.items():
@@ -249,13 +256,14 @@ def main(argv=None) -> int:
     a, b = rows["neck10x4"], rows["paper"]
     print(f"ratio 10x4 / 3-joint: identify {a[1] / b[1]:.2f}, diagnose {a[2] / b[2]:.2f} (target <= 1.5 each)")
     p, res = results["neck10x4"]
-    print("\n10x4 identified vs plant, relative error (%) per cable:")
-    for label, got, true in (("f_s", res.f_s, p.friction.f_s), ("k", res.variable.group("k"), p.cables.k),
-                             ("lambda", res.variable.group("lambda"), p.cables.lam),
-                             ("k + lambda 60 N", res.variable.group("k") + 60.0 * res.variable.group("lambda"),
-                              np.asarray(p.cables.k) + 60.0 * np.asarray(p.cables.lam))):
-        err = 100.0 * (np.asarray(got) / np.asarray(true) - 1.0)
-        print(f"  {label:16}" + "".join(f"{e:+8.1f}" for e in err))
+    if res is not None:
+        print("\n10x4 identified vs plant, relative error (%) per cable:")
+        for label, got, true in (("f_s", res.f_s, p.friction.f_s), ("k", res.variable.group("k"), p.cables.k),
+                                 ("lambda", res.variable.group("lambda"), p.cables.lam),
+                                 ("k + lambda 60 N", res.variable.group("k") + 60.0 * res.variable.group("lambda"),
+                                  np.asarray(p.cables.k) + 60.0 * np.asarray(p.cables.lam))):
+            err = 100.0 * (np.asarray(got) / np.asarray(true) - 1.0)
+            print(f"  {label:16}" + "".join(f"{e:+8.1f}" for e in err))
     if tmp is not None:
         tmp.cleanup()
     return 0

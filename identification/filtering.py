@@ -125,11 +125,19 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
         raise ValueError(f"residual_cutoff: expected (T >= 32, C) samples, got shape {x.shape}")
     nyq = 0.5 * fs
     fc = np.linspace(0.01, 0.95, n_candidates) * nyq
-    res = np.empty((n_candidates, x.shape[1]))
-    for i, f in enumerate(fc):
-        res[i] = np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))
     band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
+    res = np.full((n_candidates, x.shape[1]), np.nan)        # NaN: never read (below)
+    res[band] = _residuals(x, fs, fc, order, np.nonzero(band)[0])
     slope, intercept = np.polyfit(fc[band], res[band], 1)
+    # the other candidates from the lowest up, until every channel's first crossing is among them:
+    # those between the crossings and the band are never read (a third of the camera's candidates)
+    rest = np.nonzero(~band)[0]
+    step = max(1, _LANES // x.shape[1])
+    for k in range(0, rest.size, step):
+        done = (intercept <= 0) | np.any(res[: rest[k]] <= intercept, axis=0)
+        if done.all():
+            break
+        res[rest[k:k + step]] = _residuals(x, fs, fc, order, rest[k:k + step])
     chosen = np.empty(x.shape[1])
     for c in range(x.shape[1]):
         below = np.nonzero(res[:, c] <= intercept[c])[0]
@@ -145,6 +153,109 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
             chosen[c] = fc[i - 1] + w * (fc[i] - fc[i - 1])
     return CutoffChoice(float(chosen.max()), "residual analysis (Winter)", tuple(chosen.tolist()),
                         tuple(np.maximum(intercept, 0.0).tolist()))
+
+
+def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int, rows: np.ndarray) -> np.ndarray:
+    """R(f_c) = rms(x - lowpass(x, f_c)) per candidate ``fc[rows]`` and channel, (K, C), for x (T, C).
+
+    ``np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))`` for every f in ``fc``, bit
+    for bit: with two channels or more numpy sums a (T, C) array over axis 0 row after row, as the
+    kernel does; one channel it sums pairwise, so that case keeps numpy.  One compiled call for all
+    candidates, with their designs stacked once per (order, candidates, rate): a bootstrap replicate
+    analyses its camera angles again, where 120 calls' set-up cost more than the filtering."""
+    if x.shape[1] < 2:
+        return np.stack([np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0)) for f in fc[rows]])
+    sos, zi, edge = _candidate_designs(int(order), tuple(fc.tolist()), float(fs))
+    if x.shape[0] <= edge:
+        raise ValueError(f"lowpass: {x.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
+    return _residual_rms(sos[rows], zi[rows], np.ascontiguousarray(x), edge, _LANES)
+
+
+#: Independent filter recursions :func:`_residual_rms` runs side by side (a few AVX registers' worth).
+_LANES = 64
+
+
+@functools.lru_cache(maxsize=16)
+def _candidate_designs(order: int, fc: tuple, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_butter_sos` of every candidate cutoff stacked: sos (K, S, 6), zi (K, S, 2), pad length."""
+    designs = []
+    for f in fc:
+        if not 0 < f < 0.5 * fs:
+            raise ValueError(f"cutoff: {f:.4g} Hz must lie in (0, {0.5 * fs:.4g}) Hz (Nyquist at {fs:.4g} Hz)")
+        designs.append(_butter_sos(order, f, fs))
+    if len({d[2] for d in designs}) != 1:            # a Butterworth low-pass: one pad length for all
+        raise ValueError("residual analysis: the candidate filters differ in pad length")
+    sos, zi = np.stack([d[0] for d in designs]), np.stack([d[1] for d in designs])
+    sos.flags.writeable = False
+    zi.flags.writeable = False
+    return sos, zi, designs[0][2]
+
+
+@kernel
+def _residual_rms(sos, zi, x, edge, lanes):       # pragma: no cover  (compiled)
+    # per candidate and channel: _filtfilt's arithmetic, then the sum of squares row after row
+    # (numpy's order for a (T, C >= 2) array over axis 0), divided by T, square root.  Blocks of
+    # candidates run side by side as ~``lanes`` independent recursions (candidate, channel)
+    # innermost: the same operations per recursion, but they vectorise (3 camera channels alone
+    # would wait on each sample's recursion)
+    T, C = x.shape
+    K, S = sos.shape[0], sos.shape[1]
+    B = max(1, min(K, lanes // C))
+    W = B * C
+    L = T + 2 * edge
+    res = np.empty((K, C))
+    ext = np.empty((L, W))
+    coef = np.empty((S, 5, W))
+    z0 = np.empty((S, W))
+    z1 = np.empty((S, W))
+    acc = np.empty(W)
+    for k0 in range(0, K, B):
+        nb = min(B, K - k0)
+        w = nb * C
+        for j in range(nb):
+            for s in range(S):
+                for c in range(C):
+                    coef[s, 0, j * C + c] = sos[k0 + j, s, 0]
+                    coef[s, 1, j * C + c] = sos[k0 + j, s, 1]
+                    coef[s, 2, j * C + c] = sos[k0 + j, s, 2]
+                    coef[s, 3, j * C + c] = sos[k0 + j, s, 4]
+                    coef[s, 4, j * C + c] = sos[k0 + j, s, 5]
+        for k in range(edge):                   # odd extension, as scipy's odd_ext
+            for j in range(nb):
+                for c in range(C):
+                    ext[k, j * C + c] = 2 * x[0, c] - x[edge - k, c]
+                    ext[T + edge + k, j * C + c] = 2 * x[T - 1, c] - x[T - 2 - k, c]
+        for k in range(T):
+            for j in range(nb):
+                for c in range(C):
+                    ext[edge + k, j * C + c] = x[k, c]
+        for p in range(2):                      # forward, then over the reversed forward output
+            first = 0 if p == 0 else L - 1
+            for s in range(S):
+                for j in range(nb):
+                    for c in range(C):
+                        z0[s, j * C + c] = zi[k0 + j, s, 0] * ext[first, j * C + c]
+                        z1[s, j * C + c] = zi[k0 + j, s, 1] * ext[first, j * C + c]
+            for i in range(L):
+                n = i if p == 0 else L - 1 - i
+                for s in range(S):
+                    for q in range(w):
+                        x_cur = ext[n, q]
+                        x_new = coef[s, 0, q] * x_cur + z0[s, q]
+                        z0[s, q] = coef[s, 1, q] * x_cur - coef[s, 3, q] * x_new + z1[s, q]
+                        z1[s, q] = coef[s, 2, q] * x_cur - coef[s, 4, q] * x_new
+                        ext[n, q] = x_new
+        for q in range(w):
+            acc[q] = 0.0
+        for t in range(T):
+            for j in range(nb):
+                for c in range(C):
+                    d = x[t, c] - ext[edge + t, j * C + c]
+                    acc[j * C + c] += d * d
+        for j in range(nb):
+            for c in range(C):
+                res[k0 + j, c] = np.sqrt(acc[j * C + c] / T)
+    return res
 
 
 def decimation_factor(fs: float, camera_rate_hz: float) -> int:

@@ -47,7 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from identification.filtering import CutoffChoice, decimate, decimation_factor, lowpass, residual_cutoff
-from neck_sim.analytic import elongation
+from neck_sim.analytic import cable_kinematics, elongation
 from neck_sim.params import NeckParams
 
 if TYPE_CHECKING:
@@ -237,6 +237,19 @@ class Prepared:
     # theta, theta_dot, theta_ddot and force decimated, before the common bandwidth: ``prepare``'s
     # ``reuse`` takes them instead of filtering and decimating the same motor samples again
     _decimated: dict | None = field(default=None, repr=False)
+    # (routing, geometry, CableKinematics of alpha, alpha_dot): eq (27)'s lengths came with Z and
+    # Zdot, which the joint dynamics take (``transmission_for``) instead of evaluating them again
+    _cables: tuple | None = field(default=None, repr=False)
+
+    def transmission_for(self, params: NeckParams) -> tuple[np.ndarray, np.ndarray] | None:
+        """(Z, Zdot) (S, N, m) at ``alpha``, ``alpha_dot`` when prepared with the routing and
+        geometry of ``params``; None otherwise (the caller evaluates them)."""
+        if self._cables is None:
+            return None
+        routing, geometry, kin = self._cables
+        if routing is not params.routing or geometry != _geometry_key(params):
+            return None
+        return kin.Z, kin.Zdot
 
     @property
     def has_camera(self) -> bool:
@@ -267,7 +280,8 @@ def _cutoff(given: float | None, x: np.ndarray, fs: float, order: int) -> Cutoff
 
 
 def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings | None = None,
-            *, camera_rate_hz: float | None = None, reuse: Prepared | None = None) -> Prepared:
+            *, camera_rate_hz: float | None = None, reuse: Prepared | None = None,
+            transmission: bool = False) -> Prepared:
     """Filter, differentiate, decimate and synchronise ``meas`` (see the module docstring).
 
     ``params`` gives the nominal geometry and drive (for eq 27); ``camera_rate_hz`` (default
@@ -275,8 +289,11 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     very same motor arrays (``reuse.fast.theta is meas.theta``, likewise the forces) with the motor
     cutoff given here, whose filtered and decimated motor signals are taken instead of computed
     again (the camera-noise bootstrap prepares the same motors with new camera frames; the result
-    is the same bit for bit).  Raises ValueError naming the problem for a log that is too short,
-    unevenly sampled, or whose camera does not overlap it, and for a ``reuse`` of other motors.
+    is the same bit for bit).  ``transmission``: eq (27)'s cable lengths in one pass with Z and
+    Zdot at the camera angles, kept for the joint dynamics (``Prepared.transmission_for``; the
+    camera-noise bootstrap computes both on every replicate).  Raises ValueError naming the problem
+    for a log that is too short, unevenly sampled, or whose camera does not overlap it, and for a
+    ``reuse`` of other motors.
     """
     s = settings or PreprocessSettings()
     n = params.n_joints
@@ -338,19 +355,31 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
     x_c: np.ndarray | None = None
     x_c_dot: np.ndarray | None = None
     x_c_ddot: np.ndarray | None = None
+    cables: tuple | None = None
     if alpha is not None:
         if refilter and common < cutoffs["camera"].hz:
             alpha = lowpass(alpha, rate, common, order)
         alpha = alpha[keep]
         alpha_dot = np.gradient(alpha, h, axis=0)
         alpha_ddot = np.gradient(alpha_dot, h, axis=0)
-        x_c = elongation(slow["theta"], alpha, params)
+        if transmission:
+            kin = cable_kinematics(alpha, alpha_dot, params)
+            cables = (params.routing, _geometry_key(params), kin)
+            x_c = elongation(slow["theta"], alpha, params, lengths=kin.lengths)
+        else:
+            x_c = elongation(slow["theta"], alpha, params)
         x_c_dot = np.gradient(x_c, h, axis=0)
         x_c_ddot = np.gradient(x_c_dot, h, axis=0)
 
     return Prepared(t=t[keep], **slow, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot,
                     x_c=x_c, x_c_dot=x_c_dot, x_c_ddot=x_c_ddot, motor_rate_hz=fs, rate_hz=rate, decimation=q,
-                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated)
+                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated, _cables=cables)
+
+
+def _geometry_key(params: NeckParams) -> tuple:
+    """What Z depends on besides the routing and the angles."""
+    g = params.geometry
+    return (params.n_joints, g.b, g.L, g.r)
 
 
 def _reused(reuse: Prepared, meas: Measurements, chain: SlowChain) -> tuple[dict, np.ndarray]:

@@ -37,7 +37,9 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic import bias_forces, gravity_spring_torque, mass_matrix, motor_friction, transmission_matrix
+from neck_sim.analytic import motor_friction
+from neck_sim.analytic.dynamics import JointDynamics
+from neck_sim.analytic.dynamics import joint_dynamics as analytic_joint_dynamics
 from neck_sim.params import NeckParams
 
 from identification.preprocessing import Prepared
@@ -55,13 +57,8 @@ class Regression(NamedTuple):
     units: tuple
 
 
-class Dynamics(NamedTuple):
-    """Z (S, N, m) m, M (S, N, N) kg m^2 with motors, c (S, N) N m with motors, g (S, N) N m."""
-
-    Z: np.ndarray
-    M: np.ndarray
-    c: np.ndarray
-    g: np.ndarray
+#: Z (S, N, m) m, M (S, N, N) kg m^2 with motors, c (S, N) N m with motors, g (S, N) N m.
+Dynamics = JointDynamics
 
 
 def parameter_names(symbol: str, n_cables: int) -> tuple:
@@ -100,9 +97,7 @@ def _need_camera(prep: Prepared, model: str) -> _Camera:
 def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
     """Z, M, c, g (with the geared motors, eqs 24 and 26 corrected) at the camera's joint angles."""
     cam = _need_camera(prep, "joint dynamics")
-    a, ad = cam.alpha, cam.alpha_dot
-    return Dynamics(transmission_matrix(a, params), mass_matrix(a, params, motors=True),
-                    bias_forces(a, ad, params, motors=True), gravity_spring_torque(a, params))
+    return analytic_joint_dynamics(cam.alpha, cam.alpha_dot, params, transmission=prep.transmission_for(params))
 
 
 def friction_basis(theta_dot: npt.ArrayLike, params: NeckParams) -> np.ndarray:

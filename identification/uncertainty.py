@@ -49,6 +49,7 @@ import numpy.typing as npt
 from identification import regressors as reg
 from identification.least_squares import LSResult
 from identification.preprocessing import Measurements, PreprocessSettings, Prepared, prepare
+from identification.threads import single_thread
 from neck_sim.params import NeckParams
 
 __all__ = ["Uncertainty", "Replicates", "row_samples", "andrews_bandwidth", "hac_covariance", "camera_noise_bootstrap",
@@ -269,13 +270,14 @@ def _replicate_values(prep: Prepared, params: NeckParams, taut: np.ndarray | Non
 
     def one(alpha_camera: np.ndarray) -> dict:
         p = prepare(Measurements(fast.t, fast.theta, fast.force, tc, alpha_camera), params, fixed,
-                    camera_rate_hz=rate, reuse=prep)
+                    camera_rate_hz=rate, reuse=prep, transmission=True)
         if p.n_samples != prep.n_samples:
             raise RuntimeError("camera noise bootstrap: the replicate's grid differs from the log's")
         return refit(p, params, taut, weight=weight, models=models)
 
-    # the replicates are independent and their compiled kernels and BLAS release the GIL
-    with ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1)) as pool:
+    # the replicates are independent and their compiled kernels and BLAS release the GIL; BLAS
+    # on one thread each (threads.py: its threads would only spin on the (r, 3m) products)
+    with single_thread(), ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1)) as pool:
         values = list(pool.map(one, frames))
     return {k: np.asarray([v[k] for v in values]) for k in values[0]} if values else {}
 

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.geometry import (_joint_local, _psi_derivatives, _side_terms, check_alpha, check_pose,
+from neck_sim.analytic.geometry import (_corner_terms, _psi_derivatives, _side_terms, check_alpha, check_pose,
                                         side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
@@ -41,7 +41,7 @@ from neck_sim.routing import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_
 if TYPE_CHECKING:
     from neck_sim.params import Routing
 
-__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_kernel",
+__all__ = ["cable_lengths", "transmission_matrix", "transmission_matrix_dot", "transmission_terms", "transmission_kernel",
            "CableKinematics", "cable_kinematics", "elongation", "motor_angles_rigid"]
 
 
@@ -84,7 +84,7 @@ def transmission_kernel(alpha: np.ndarray, geometry: np.ndarray, cases: np.ndarr
 
 
 def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
-              left_strut: bool = True, jl=None) -> dict:
+              left_strut: bool = True, jl=None, strut_joints: np.ndarray | None = None) -> dict:
     """Per-joint variable length of every segment kind, order -> array (..., K, N) (K kinds).
 
     Row k holds kind k of :mod:`neck_sim.params` (``SEG_*``; row 0, "not on this joint", is
@@ -92,7 +92,8 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     ``orders`` asked for are computed: Z needs order 1 alone, and skipping the corner geometry
     of order 2 makes it several times cheaper; ``left_strut=False`` skips the mirror of case (d);
     ``jl``: :func:`~neck_sim.analytic.geometry._joint_local` of the same ``alpha``, when the caller
-    has it (the statics' Hessian needs the same corners).
+    has it (the statics' Hessian needs the same corners); ``strut_joints``: the joints whose mirror
+    of case (d) is read (None: all), the others' second derivative of it left 0.
     """
     want = set(orders)
     if want == {1} and jl is None:
@@ -108,8 +109,6 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     sides = _side_terms(alpha, b, L) if jl is None else tuple(jl.sides)
     l_l, dl_l, ddl_l, l_r, dl_r, ddl_r = sides
     t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
-    if 2 in want and jl is None:
-        jl = _joint_local(alpha, b, L, sides)
     out = {k: np.zeros(alpha.shape[:-1] + (N_SEGMENT_KINDS, alpha.shape[-1])) for k in want}
     slopes = _segment_slopes(alpha, b, L, r, sides) if 1 in want else None
 
@@ -132,11 +131,32 @@ def _segments(alpha: np.ndarray, b: float, L: float, r: float, orders=(0, 1, 2),
     put(SEG_RIGHT_SIDE, lambda: l_r + r * alpha, None, lambda: ddl_r)
     # Case (d), eq (6): psi = angle of B->C (eq 7 by atan2); psi' from the rod B->C of constant
     # length L.  Its mirror d'(alpha) = d(-alpha), with psi(-alpha) = atan2(l_r c, l_r s - b).
-    ddpsi = _psi_derivatives(jl, b, L)[1] if 2 in want else 0.0     # read only for order 2
+    ddpsi: np.ndarray | float = 0.0                                   # read only for order 2
+    if 2 in want:
+        ddpsi = _psi_second(alpha, b, L, sides) if jl is None else _psi_derivatives(jl, b, L)[1]
     put(SEG_RIGHT_STRUT, lambda: r * (2 * np.arctan2(l_l * c, -b - l_l * s) - alpha), None, lambda: 2 * r * ddpsi)
     if left_strut:
-        ddpsi_m = _psi_derivatives(_joint_local(-alpha, b, L), b, L)[1] if 2 in want else 0.0
+        ddpsi_m = _mirror_psi_second(alpha, b, L, strut_joints) if 2 in want else 0.0
         put(SEG_LEFT_STRUT, lambda: r * (2 * np.arctan2(l_r * c, l_r * s - b) + alpha), None, lambda: 2 * r * ddpsi_m)
+    return out
+
+
+def _psi_second(a: np.ndarray, b: float, L: float, sides: tuple) -> np.ndarray:
+    """psi'' of :func:`~neck_sim.analytic.geometry._psi_derivatives` (the rod B->C of constant
+    length L) from the corner terms as computed, not stacked into points: the same products."""
+    k = _corner_terms(a, b, L, sides)
+    cx, cy, ddcx, ddcy = k[0], k[1], k[4], k[5]
+    return ((cx - b / 2) * ddcy - (cy - 0.0) * ddcx) / (L * L)
+
+
+def _mirror_psi_second(alpha: np.ndarray, b: float, L: float, joints: np.ndarray | None) -> np.ndarray:
+    """psi''(-alpha) (the mirror of case (d)) on ``joints`` (None: all), 0 on the others: a routing
+    takes the mirror on a few joints (the 10-joint, 4-cable neck's left cable on 5 of 10)."""
+    if joints is None or joints.size == alpha.shape[-1]:
+        return _psi_second(-alpha, b, L, _side_terms(-alpha, b, L))
+    am = -alpha[..., joints]
+    out = np.zeros(alpha.shape)
+    out[..., joints] = _psi_second(am, b, L, _side_terms(am, b, L))
     return out
 
 
@@ -156,7 +176,9 @@ def _gather(seg: np.ndarray, cases: np.ndarray) -> np.ndarray:
 
 
 def _evaluate(alpha: np.ndarray, params: NeckParams, orders, jl=None) -> dict:
-    return _segments(alpha, *_geom(params), orders=orders, left_strut=_routing_terms(params)[2], jl=jl)
+    cases, _, left_strut = _routing_terms(params)
+    joints = np.nonzero(np.any(cases == SEG_LEFT_STRUT, axis=0))[0] if left_strut and 2 in orders else None
+    return _segments(alpha, *_geom(params), orders=orders, left_strut=left_strut, jl=jl, strut_joints=joints)
 
 
 def _lengths(alpha: np.ndarray, params: NeckParams, seg0: np.ndarray) -> np.ndarray:
@@ -241,15 +263,32 @@ def cable_kinematics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: Nec
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
     seg = _evaluate(a, params, (0, 1, 2))
-    return CableKinematics(_lengths(a, params, seg[0]), _z(seg[1], params), _z(seg[2], params) * ad[..., :, None])
+    return CableKinematics(_lengths(a, params, seg[0]), *_z_and_dot(seg, ad, params))
+
+
+def transmission_terms(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                       allow_outside_range: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(Z (..., N, m) m, Zdot (..., N, m) m/s) of :func:`cable_kinematics` without the lengths
+    (the same arrays, bit for bit; the lengths' segment values cost a third of the pass)."""
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    ad = check_alpha(alpha_dot, params.n_joints, "alpha_dot")
+    return _z_and_dot(_evaluate(a, params, (1, 2)), ad, params)
+
+
+def _z_and_dot(seg: dict, ad: np.ndarray, params: NeckParams) -> tuple[np.ndarray, np.ndarray]:
+    """Z and Zdot from the segments' first and second derivatives (``_evaluate`` orders 1, 2)."""
+    return _z(seg[1], params), _z(seg[2], params) * ad[..., :, None]
 
 
 def elongation(theta: npt.ArrayLike, alpha: npt.ArrayLike, params: NeckParams, *,
-               allow_outside_range: bool = False) -> np.ndarray:
-    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m."""
+               allow_outside_range: bool = False, lengths: np.ndarray | None = None) -> np.ndarray:
+    """Cable elongation x_c = l_c - l_c0 + (r_d/R) theta (corrected eq 27), shape (..., m), m.
+
+    ``lengths``: :func:`cable_lengths` of ``alpha`` when the caller has them (``cable_kinematics``)."""
     a = params.actuation
-    return (cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
-            + (a.r_d / a.R) * np.asarray(theta, dtype=float))
+    if lengths is None:
+        lengths = cable_lengths(alpha, params, allow_outside_range=allow_outside_range)
+    return lengths + (a.r_d / a.R) * np.asarray(theta, dtype=float)
 
 
 def motor_angles_rigid(alpha: npt.ArrayLike, params: NeckParams, elongation: npt.ArrayLike | None = None, *,

@@ -27,14 +27,14 @@ from typing import Callable, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from neck_sim.analytic.cables import cable_kinematics, transmission_matrix
+from neck_sim.analytic.cables import cable_kinematics, transmission_matrix, transmission_terms
 from neck_sim.analytic.geometry import (check_alpha, check_pose, corner_terms_kernel, forward_kinematics,
                                         side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
-           "bias_forces", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
+           "bias_forces", "JointDynamics", "joint_dynamics", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
            "motor_friction", "cable_tension", "secant_stiffness", "cable_stiffness", "static_elongation",
            "euler_elongation", "elongation_step",
            "elongation_series", "rigid_acceleration",
@@ -132,14 +132,16 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
             hy = hoy - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy
             hr = ddb * w * w
             m, I = mass[body], inertia[body]
+            # the upper triangle only, mirrored at the end: each term is symmetric bit for bit
+            # (products commute, and of Jr[kk], Jr[ll] all but the diagonal's one is exactly 1)
             for kk in range(i + 1):
-                for ll in range(i + 1):
+                for ll in range(kk, i + 1):
                     M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
                 c[kk] += m * (Jx[kk] * hx + Jy[kk] * hy) + I * Jr[kk] * hr
                 G[kk] += grav * m * Jy[kk]
             if body == 2 and i == n - 1 and payload > 0:      # point mass at the head's bar centre
                 for kk in range(n):
-                    for ll in range(n):
+                    for ll in range(kk, n):
                         M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
                     c[kk] += payload * (Jx[kk] * hx + Jy[kk] * hy)
                     G[kk] += payload * grav * Jy[kk]
@@ -159,6 +161,9 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
         hoy += -phid * phid * rmy + 2 * phid * w * rdmx + w * w * (sp * ddmx + cp * ddmy)
         phi += a[i]
         phid += w
+    for kk in range(n):
+        for ll in range(kk):
+            M[kk, ll] = M[ll, kk]
 
 
 @kernel
@@ -194,9 +199,20 @@ def mass_matrix(alpha: npt.ArrayLike, params: NeckParams, motors: bool = True, *
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     M = linkage_dynamics(a, np.zeros_like(a), params, allow_outside_range=True).M
     if motors:
-        Z = transmission_matrix(a, params, allow_outside_range=True)
-        M = M + params.actuation.reflected_inertia * Z @ np.swapaxes(Z, -1, -2)
+        M = _with_motor_inertia(M, transmission_matrix(a, params, allow_outside_range=True), params)
     return M
+
+
+def _with_motor_inertia(M_m: np.ndarray, Z: np.ndarray, params: NeckParams) -> np.ndarray:
+    """Eq (24): M = M_m + I_a (R/r_d)^2 Z Z^T, (..., N, N) kg m^2."""
+    return M_m + params.actuation.reflected_inertia * Z @ np.swapaxes(Z, -1, -2)
+
+
+def _with_motor_bias(c_m: np.ndarray, Z: np.ndarray, Zdot: np.ndarray, alpha_dot: npt.ArrayLike,
+                     params: NeckParams) -> np.ndarray:
+    """Eq (26) corrected: c = c_m + I_a (R/r_d)^2 Z Zdot^T alpha_dot (erratum 5), (..., N) N m."""
+    zdt_ad = np.einsum("...ij,...i->...j", Zdot, np.asarray(alpha_dot, dtype=float))
+    return c_m + params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", Z, zdt_ad)
 
 
 def bias_forces(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, motors: bool = True, *,
@@ -207,10 +223,33 @@ def bias_forces(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckPara
     """
     c = linkage_dynamics(alpha, alpha_dot, params, allow_outside_range=allow_outside_range).c
     if motors:
-        ck = cable_kinematics(alpha, alpha_dot, params, allow_outside_range=True)
-        zdt_ad = np.einsum("...ij,...i->...j", ck.Zdot, np.asarray(alpha_dot, dtype=float))
-        c = c + params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", ck.Z, zdt_ad)
+        c = _with_motor_bias(c, *transmission_terms(alpha, alpha_dot, params, allow_outside_range=True), alpha_dot,
+                             params)
     return c
+
+
+class JointDynamics(NamedTuple):
+    """Z (..., N, m) m, M (..., N, N) kg m^2 and c (..., N) N m with the motors, g (..., N) N m."""
+
+    Z: np.ndarray
+    M: np.ndarray
+    c: np.ndarray
+    g: np.ndarray
+
+
+def joint_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
+                   allow_outside_range: bool = False,
+                   transmission: tuple[np.ndarray, np.ndarray] | None = None) -> JointDynamics:
+    """:func:`transmission_matrix`, :func:`mass_matrix`, :func:`bias_forces` (both with motors) and
+    :func:`gravity_spring_torque` in one pass, bit for bit: one linkage evaluation (M_m and g do
+    not depend on alpha_dot) and one of the cable segments' derivatives, where the four functions
+    take three and three (a 10-joint neck's identification computes these on every bootstrap
+    replicate).  alpha, alpha_dot (..., N) rad, rad/s; ``transmission``: (Z, Zdot) of these
+    angles and ``params`` when the caller has them (``cable_kinematics``)."""
+    lk = linkage_dynamics(alpha, alpha_dot, params, allow_outside_range=allow_outside_range)
+    Z, Zdot = transmission or transmission_terms(alpha, alpha_dot, params, allow_outside_range=True)
+    return JointDynamics(Z, _with_motor_inertia(lk.M, Z, params), _with_motor_bias(lk.c, Z, Zdot, alpha_dot, params),
+                         lk.g)
 
 
 def gravity_spring_torque(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:

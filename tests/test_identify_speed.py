@@ -1,0 +1,80 @@
+"""The identification's fast paths against the computations they replace, bit for bit.
+
+The camera-noise bootstrap repeats the camera's residual analysis and the joint dynamics on every
+replicate; both have a faster form (one compiled call for all candidate cutoffs, computing only the
+candidates the choice reads; one pass for Z, M, c and g).  Each must give the very numbers of the
+plain computation kept here as the reference.  (That the threaded bootstrap's prepare with
+``transmission=True`` equals prepare without it is held by
+``test_identify_coverage.py::test_the_threaded_bootstrap_is_the_replicates_run_one_after_another``.)
+"""
+
+import numpy as np
+import pytest
+
+from identification.filtering import lowpass, residual_cutoff
+from neck_sim.analytic import (bias_forces, cable_kinematics, gravity_spring_torque, mass_matrix,
+                               transmission_matrix)
+from neck_sim.analytic.dynamics import joint_dynamics
+from neck_sim.params import default_params, example_params
+
+
+def _reference_cutoff(x, fs, order=4, n_candidates=120, fit_band=(0.5, 0.95)):
+    """Winter's residual analysis as written before the fast path: every candidate filtered by
+    ``lowpass`` and its rms taken by numpy, then the same line fit and first crossing."""
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    nyq = 0.5 * fs
+    fc = np.linspace(0.01, 0.95, n_candidates) * nyq
+    res = np.stack([np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0)) for f in fc])
+    band = (fc >= fit_band[0] * nyq) & (fc <= fit_band[1] * nyq)
+    _, intercept = np.polyfit(fc[band], res[band], 1)
+    chosen = []
+    for c in range(x.shape[1]):
+        below = np.nonzero(res[:, c] <= intercept[c])[0]
+        if below.size == 0 or intercept[c] <= 0:
+            chosen.append(fc[-1])
+        elif below[0] == 0:
+            chosen.append(fc[0])
+        else:
+            i = below[0]
+            r0, r1 = res[i - 1, c], res[i, c]
+            w = (r0 - intercept[c]) / (r0 - r1) if r0 != r1 else 1.0
+            chosen.append(fc[i - 1] + w * (fc[i] - fc[i - 1]))
+    return tuple(float(v) for v in chosen), tuple(np.maximum(intercept, 0.0).tolist())
+
+
+@pytest.mark.parametrize("channels, samples, fs, order", [(1, 1819, 31.25, 4), (3, 1819, 31.25, 4),
+                                                         (10, 1819, 31.25, 4), (4, 6000, 500.0, 4),
+                                                         (7, 400, 100.0, 2)])
+def test_residual_cutoff_is_the_per_candidate_computation(channels, samples, fs, order):
+    """Random walks plus noise of several levels (one channel noise-free, whose residual never
+    reaches the line): the chosen cutoffs and noise levels equal the reference's exactly."""
+    rng = np.random.default_rng(channels * 1000 + samples)
+    x = (np.cumsum(rng.standard_normal((samples, channels)), axis=0) * 0.01
+         + rng.uniform(0.0, 0.05, channels) * rng.standard_normal((samples, channels)))
+    if channels > 2:
+        x[:, 1] = np.sin(2 * np.pi * 0.025 * np.arange(samples))
+    got = residual_cutoff(x, fs, order=order)
+    chosen, noise = _reference_cutoff(x, fs, order)
+    assert got.per_channel_hz == chosen
+    assert got.noise_rms == noise
+    assert got.hz == max(chosen)
+
+
+@pytest.mark.parametrize("neck", ["paper", "neck10x4", "payload"])
+def test_joint_dynamics_is_the_four_functions(neck):
+    """Z, M and c with the motors, and g, in one pass: the arrays of transmission_matrix,
+    mass_matrix, bias_forces and gravity_spring_torque, bit for bit, with Z and Zdot evaluated or
+    taken from cable_kinematics (the bootstrap's prepare)."""
+    if neck == "payload":
+        p = default_params(3).replace(**{"inertia.payload_mass": 0.2})
+    else:
+        p = default_params(3) if neck == "paper" else example_params(neck)
+    rng = np.random.default_rng(11)
+    limit = 0.8 * p.geometry.alpha_max
+    a = rng.uniform(-limit, limit, (257, p.n_joints))
+    ad = rng.uniform(-2.0, 2.0, a.shape)
+    want = (transmission_matrix(a, p), mass_matrix(a, p), bias_forces(a, ad, p), gravity_spring_torque(a, p))
+    kin = cable_kinematics(a, ad, p)
+    for got in (joint_dynamics(a, ad, p), joint_dynamics(a, ad, p, transmission=(kin.Z, kin.Zdot))):
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(g, w)
