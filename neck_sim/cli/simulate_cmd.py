@@ -136,7 +136,9 @@ class _StagedLogs:
     last one under way)."""
 
     def __init__(self, namer) -> None:
-        self.namer, self.staged, self.labels = namer, {}, []      # staged: temporary -> target
+        self.namer = namer
+        self.staged: dict[str, str] = {}       # temporary -> target
+        self.labels: list[str] = []
 
     def __call__(self, label: str) -> str | None:
         from neck_sim.atomic import temp_file_beside
