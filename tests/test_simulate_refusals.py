@@ -132,13 +132,17 @@ def test_no_finding_gives_the_baselines_resimulation_alone():
     from identification.diagnosis.report import resimulation_line
     from identification.diagnosis.resimulation import Resimulation, ResimulationErrors
 
-    def resim(theta):
+    def resim(theta, diverged=0):
         errors = ResimulationErrors(theta, (1.0, 2.0), 1.5, 0.3)
         empty = np.zeros(0)
-        return Resimulation("ok", errors, errors, empty, empty, empty, empty, n_blocks=6, n_diverged=0)
+        return Resimulation("ok", errors, errors, empty, empty, empty, empty, n_blocks=6, n_diverged=diverged)
 
     baseline = resim((0.012, 0.034))
     alone = resimulation_line(baseline, baseline)
     assert "no model was extended" in alone and "->" not in alone and "0.012" in alone, alone
     compared = resimulation_line(baseline, resim((0.012, 0.034)))     # two models, equal errors
     assert "->" in compared and "no model was extended" not in compared, compared
+    lost = resim((0.012, 0.034), diverged=6)                           # every block diverged
+    alone = resimulation_line(lost, lost)
+    assert "the baseline (no model was extended) out of its valid range" in alone and "both" not in alone, alone
+    assert "both models out of their" in resimulation_line(lost, resim((0.012, 0.034), diverged=6))

@@ -116,9 +116,9 @@ def resimulation_line(before, after) -> str:
     (:class:`~identification.diagnosis.resimulation.Resimulation`): their errors; no comparison when every block of
     both diverged (the errors cover only each block's run-up) or when no finding made ``after`` ``before`` itself."""
     if before.diverged_everywhere and after.diverged_everywhere:
-        return (f"  re-simulation, held out: no comparison: open loop, the logged forces drive both models out of "
-                f"their valid range in every block ({before.n_diverged} of {before.n_blocks}); the verdict rests "
-                f"on the fitted residuals alone")
+        who = "the baseline (no model was extended) out of its" if after is before else "both models out of their"
+        return (f"  re-simulation, held out: no comparison: open loop, the logged forces drive {who} valid range in "
+                f"every block ({before.n_diverged} of {before.n_blocks}); the verdict rests on the fitted residuals alone")
     status = before.status if before.status == after.status else f"{before.status} / {after.status}"
     (b, bd), (a, ad) = ((_vec(x.holdout.theta_rms_rad), _fmt(x.holdout.alpha_mean_abs_deg, digits=3)) for x in (before, after))
     if after is before:                    # no model was extended: nothing to compare the baseline with
