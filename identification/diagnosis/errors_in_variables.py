@@ -201,18 +201,9 @@ def simex_estimates(data, refit, *, lambdas=LAMBDAS, replicates: int = REPLICATE
 def corrected_parameters(ctx, cand, parameters: dict, state=None) -> dict:
     """``parameters`` of a named candidate (:func:`identification.diagnosis.parameters.term_parameters`)
     with the magnitudes of its term SIMEX-corrected for the camera's noise when its columns ask for
-    it (``camera_noise_bias``) and the neck has fewer cables than joints, and there a hinge
-    friction's size the middle of its estimates and its sigma with their form error
-    (``hinge_size.hinge_interval``: the camera's speed in its column); else ``parameters`` itself.  ``ctx`` the step's
-    :class:`~identification.diagnosis.fitting.StepContext`, ``state`` the fit state its baseline
-    was fitted from (None at step 1)."""
-    from identification.diagnosis.hinge_size import hinge_interval
-
-    return hinge_interval(ctx, cand, _simex_corrected(ctx, cand, parameters, state))
-
-
-def _simex_corrected(ctx, cand, parameters: dict, state) -> dict:
-    """:func:`corrected_parameters`' SIMEX part."""
+    it (``camera_noise_bias``) and the neck has fewer cables than joints; else ``parameters``
+    itself.  ``ctx`` the step's :class:`~identification.diagnosis.fitting.StepContext`, ``state``
+    the fit state its baseline was fitted from (None at step 1)."""
     term, data = cand.term, ctx.data
     if not term.identification.camera_noise_bias or data.C >= data.n:
         return parameters

@@ -45,7 +45,7 @@ import re
 
 import numpy as np
 
-from identification.diagnosis.materiality import in_own_band, own_band_hz, project_band
+from identification.diagnosis.materiality import own_band_hz, project_band
 
 __all__ = ["BANDS", "WIDTHS", "SLIDE_SPEED", "band_size", "slide_size", "size_estimates", "interval",
            "hinge_interval"]
@@ -126,7 +126,7 @@ def hinge_interval(ctx, cand, parameters: dict) -> dict:
     (:func:`size_estimates`, :func:`interval`; in quadrature with eq (50)'s), when the neck has
     fewer cables than joints (the camera's speed in the column); else ``parameters`` itself.
     ``ctx`` the step's ``fitting.StepContext``, ``cand`` the named candidate (its fit and term)."""
-    from identification.diagnosis.columns.joint_friction import JointFrictionColumns, camera_hinge_column, hinge_lever
+    from identification.diagnosis.columns.joint_friction import JointFrictionColumns, hinge_lever
     from identification.diagnosis.parameters import FORM_NOTE
 
     data = ctx.data
@@ -134,7 +134,7 @@ def hinge_interval(ctx, cand, parameters: dict) -> dict:
         return parameters
     fit, shape = cand.fit, dict(cand.term.shape)
     width = float(shape["width"])
-    column = in_own_band(camera_hinge_column(data, width), data.prep)      # the fitted column (S, N)
+    column = JointFrictionColumns.hinge_column(data, width)      # the fitted column (S, N), projected
     lever = hinge_lever(data.alpha, data.params)
     rate, common = data.prep.rate_hz, data.prep.cutoffs["common"].hz
     symbol = JointFrictionColumns.columns[0].symbol

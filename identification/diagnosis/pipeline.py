@@ -13,6 +13,7 @@ from identification.diagnosis.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.errors_in_variables import corrected_parameters
 from identification.diagnosis.gains import AlphaHatErrors, alpha_hat_errors, residual_rms
+from identification.diagnosis.hinge_size import hinge_interval
 from identification.diagnosis.parameters import (all_parameters, cables_of, chosen_fit, joints_of, shape_located,
                                                   term_parameters)
 from identification.diagnosis.resimulation import resimulate
@@ -137,8 +138,10 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
 def _finding_parameters(ctx: StepContext, cand, state) -> dict:
     """A named candidate's parameters, its magnitudes corrected for the camera's noise where its
     columns need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`;
-    ``state`` the fit state the step's baseline started from)."""
-    return corrected_parameters(ctx, cand, term_parameters(ctx, cand), state)
+    ``state`` the fit state the step's baseline started from), and a hinge friction's size on a
+    neck with fewer cables than joints the middle of its estimates with their form error
+    (:func:`identification.diagnosis.hinge_size.hinge_interval`)."""
+    return hinge_interval(ctx, cand, corrected_parameters(ctx, cand, term_parameters(ctx, cand), state))
 
 
 def diagnose_log(log: Log | str | os.PathLike, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,

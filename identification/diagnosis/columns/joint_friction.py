@@ -59,9 +59,10 @@ class JointFrictionColumns(EffectColumns):
     locates_joint: ClassVar[bool] = True
 
     @classmethod
-    def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
-        """Torque block: per joint, the friction torque of 1 N m per hinge (sign of eq 30's g:
-        it adds to the torque the cables must supply along the motion)."""
+    def hinge_column(cls, data: ColumnData, width: float) -> np.ndarray:
+        """(S, N): each joint's friction torque of 1 N m per hinge at the tanh ``width`` (rad/s),
+        on the slow grid through the observations' chain (cached on ``data``): what the fit's
+        columns hold, unit by unit."""
         def compute():
             if data.C < data.n:
                 # C < N motor speeds do not determine N joint speeds (eq 35 has a null space: its
@@ -73,13 +74,19 @@ class JointFrictionColumns(EffectColumns):
                 # so the tanh of that speed follows neither the hinge's sign nor its size (joints
                 # 5 and 4 read -41 % and +19 % with the full band, -12 % and +4 % with the plant's
                 # own speed, -8.6 % and +26 % +- 23 % projected on the band)
-                return in_own_band(camera_hinge_column(data, shape["width"]), data.prep)
+                return in_own_band(camera_hinge_column(data, width), data.prep)
             alpha_fast = np.stack([np.interp(data.t_fast, data.t, data.alpha[:, i]) for i in range(data.n)], axis=1)
             speed = joint_speed_from_encoders(data.theta_dot_fast, alpha_fast, data.params)
-            fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / shape["width"])
+            fast = hinge_lever(alpha_fast, data.params) * np.tanh(speed / width)
             return data.to_slow(fast)
 
-        col = data.cached((cls.effect, shape["width"]), compute)
+        return data.cached((cls.effect, width), compute)
+
+    @classmethod
+    def design(cls, data: ColumnData, shape: dict, context: FitContext) -> Design:
+        """Torque block: per joint, the friction torque of 1 N m per hinge (sign of eq 30's g:
+        it adds to the torque the cables must supply along the motion; :meth:`hinge_column`)."""
+        col = cls.hinge_column(data, shape["width"])
         cols = (col[:, :, None] * np.eye(data.n))[:, :, cls.columns[0].select(cls.joint_of(shape))]
         return Design(cols, np.zeros((data.S, data.C, cols.shape[2])))
 
