@@ -21,8 +21,8 @@ if TYPE_CHECKING:
     from controllers.underactuated import ReachablePath
     from neck_sim.plant import Plant
 
-__all__ = ["PAPER_CONTROL_TESTS", "PAPER_TABLE3", "TABLE3_CASES", "default_log_path", "control_tests", "table3",
-           "format_control_table", "format_table3"]
+__all__ = ["PAPER_CONTROL_TESTS", "PAPER_TABLE3", "TABLE3_CASES", "default_log_path", "control_log_labels",
+           "table3_log_label", "control_tests", "table3", "format_control_table", "format_table3"]
 
 # §7: mean |alpha_hat - alpha_d| and mean |alpha_hat - alpha_IP| (deg) of tests 1-3 on the prototype.
 PAPER_CONTROL_TESTS = {1: {"tracking": 0.52, "estimation": 2.19},
@@ -42,6 +42,20 @@ def default_log_path(trajectory: str, label: str, directory: str = "logs") -> st
     """``logs/simulate-<trajectory>-<label>-<UTC time>.mcap``."""
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%dT%H%M%S")
     return os.path.join(directory, f"simulate-{trajectory}-{label}-{stamp}.mcap")
+
+
+def control_log_labels(controller: str, laws: Sequence[int]) -> list[str]:
+    """The labels :func:`control_tests` gives its runs' logs (``log_path(label)``), in run order:
+    ``law<k>`` per law of the computed-torque controller, else the controller's name."""
+    if controller != "computed-torque":
+        return [controller]
+    return [f"law{int(law)}" for law in laws]
+
+
+def table3_log_label(plant_kind: str, pulleys: bool) -> str:
+    """The label :func:`table3` gives the log of its run with ``plant_kind`` cables and a
+    controller with (or without) pulleys."""
+    return f"{plant_kind}-{'pulleys' if pulleys else 'no-pulleys'}"
 
 
 def _make_plant(params: NeckParams, rigid_cables: bool, seed: int) -> Plant:
@@ -79,24 +93,23 @@ def control_tests(params: NeckParams, trajectory: Trajectory | ReachablePath, la
         from controllers.elastic_lqr import ElasticLQRController
         ctrl: LoopController = ElasticLQRController(model, **dict(controller_kwargs or {}))
         return {"elastic lqr": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
-                                               log_path=log_path("elastic-lqr") if log_path else None,
+                                               log_path=log_path(controller) if log_path else None,
                                                run_info={**info, "controller": "elastic-lqr"}, **guard)}
     if controller == "inverse-statics":
         from controllers.underactuated import UnderactuatedController
         ctrl = UnderactuatedController(model, **dict(controller_kwargs or {}))
         return {"inverse statics": run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory,
                                                    progress=progress,
-                                                   log_path=log_path("inverse-statics") if log_path else None,
+                                                   log_path=log_path(controller) if log_path else None,
                                                    run_info={**info, "controller": "inverse-statics"}, **guard)}
     if controller != "computed-torque":
         raise ValueError(f"controller: unknown {controller!r} (computed-torque, elastic-lqr, inverse-statics)")
     out = {}
-    for law in laws:
-        label = f"law {int(law)}"
+    for law, label in zip(laws, control_log_labels(controller, laws)):
         ctrl = ComputedTorqueController(model, law, **dict(controller_kwargs or {}))
-        out[label] = run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory, progress=progress,
-                                     log_path=log_path(f"law{int(law)}") if log_path else None,
-                                     run_info=info, **guard)
+        out[f"law {int(law)}"] = run_closed_loop(make(params, rigid_cables, seed), ctrl, trajectory,
+                                                 progress=progress, log_path=log_path(label) if log_path else None,
+                                                 run_info=info, **guard)
     return out
 
 
@@ -112,7 +125,7 @@ def table3(params: NeckParams, trajectory: Trajectory | ReachablePath, law: int 
     bare = params.replace(**{"geometry.r": 0.0})
     out = {}
     for plant_kind, pulleys in TABLE3_CASES:
-        label = f"{plant_kind}-{'pulleys' if pulleys else 'no-pulleys'}"
+        label = table3_log_label(plant_kind, pulleys)
         ctrl = ComputedTorqueController(params if pulleys else bare, law, **dict(controller_kwargs or {}))
         plant = make(params, plant_kind == "rigid", seed)
         out[(plant_kind, pulleys)] = run_closed_loop(

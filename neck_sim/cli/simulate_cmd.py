@@ -119,13 +119,14 @@ def _check_options(args, controller: str) -> None:
 def _log_labels(args, controller: str, laws: list[int]) -> dict[str, str]:
     """The labels :func:`controllers.experiments.control_tests` and ``table3`` give their runs'
     logs, in run order, each with the run's name for the user."""
-    from controllers.experiments import TABLE3_CASES
+    from controllers.experiments import TABLE3_CASES, control_log_labels, table3_log_label
     if args.table3:
-        return {f"{kind}-{'pulleys' if pulleys else 'no-pulleys'}": f"the {kind}-cable run "
-                f"{'with' if pulleys else 'without'} pulleys" for kind, pulleys in TABLE3_CASES}
+        return {table3_log_label(kind, pulleys): f"the {kind}-cable run {'with' if pulleys else 'without'} pulleys"
+                for kind, pulleys in TABLE3_CASES}
+    labels = control_log_labels(controller, laws)
     if controller != "computed-torque":
-        return {controller: controller}
-    return {f"law{int(law)}": f"law {int(law)}" for law in laws}
+        return {labels[0]: controller}
+    return {label: f"law {int(law)}" for law, label in zip(laws, labels)}
 
 
 class _StagedLogs:
