@@ -272,6 +272,33 @@ def test_the_travel_mean_friction_is_the_laws_work_over_the_distance():
     assert sigma == pytest.approx(0.3 * value / f_s)
 
 
+def test_the_flat_level_is_read_where_the_friction_is_flat_and_not_from_eq_37():
+    """``dry_level``'s rule on channels built here from their own formulas (speeds log-uniform over
+    0.05-20 rad/s with random signs, white noise of 0.5 N, the rows the force itself): a friction
+    flat above a knee, F tanh(|v| / 0.3) (the generator's law), is read by the flat law at F within
+    2 % and the rule takes it (eq 37's arctan fits it no better); eq (37) itself with c_s = 0.5 (the
+    paper's plant, still rising at 20 rad/s) fits far better than any flat law, so the rule keeps
+    eq 37's f_s."""
+    from identification.diagnosis.dry_level import C_GRID, chooses_flat, flat_fit
+
+    rng = np.random.default_rng(5)
+    v = np.exp(rng.uniform(np.log(0.05), np.log(20.0), 40000)) * rng.choice([-1.0, 1.0], 40000)
+    F, rows = 10.0, (lambda fast: fast)
+
+    def eq37(Y):                 # the arctan's least residual over its c_s (the candidate's search)
+        fits = [np.linalg.lstsq(a[:, None], Y, rcond=None) for a in
+                ((2 / np.pi) * np.arctan(c * v) for c in C_GRID)]
+        return min(float(f[1][0]) for f in fits)
+
+    for law, flat in ((F * np.tanh(np.abs(v) / 0.3), True), (F * (2 / np.pi) * np.arctan(0.5 * np.abs(v)), False)):
+        Y = np.sign(v) * law + rng.normal(0.0, 0.5, v.size)
+        level, knee, rss = flat_fit(rows, Y, v)
+        share = float(np.mean(np.abs(v) >= knee))
+        assert chooses_flat(rss, eq37(Y), share, 0.02) == flat, (level, knee, rss / eq37(Y))
+        if flat:
+            assert level == pytest.approx(F, rel=0.02) and knee < 1.0
+
+
 def test_the_separating_angle_is_where_the_leaders_tests_would_pass():
     """``separating_angle``: scaling what the leader adds to its look-alike by the first-order law
     (improvement with sin^2 of the columns' angle, each test's normal score with sin of it) to the
