@@ -207,15 +207,17 @@ def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
 #: Extra dry friction on one cable: (named alone, f_s within 10 %, f_travel within 10 %) per seed and
 #: log length (moves: 8 give 15.6 s, 31 give 59.3 s), as measured (docs/your-own-neck.md section 7).
 #: On 15.6 s seed 1's dry and pulley laws compared on cable 1 do not separate (alternatives, with
-#: what would separate them); on 59.3 s they do.  Seed 3's f_s, eq 37's asymptote, reads +24 to +27 %
-#: (the seen friction is flat above 1 rad/s, the arctan overshoots it) while its f_travel, the law's
-#: mean force per unit of travel over the log, is within 10 %; seed 1's f_travel on 15.6 s reads
-#: -13 % (what the model's other terms take from it there; f_s -5.7 %).  Reading f_s as the level of
-#: the speed-binned friction curve where it is flat was measured and not adopted: through the model
-#: the binned curve is not resolved, and above 1 rad/s seed 3's log holds 1.11-1.16 F on cable 1 (docs
-#: section 7).  Known misses are asserted as such (a fix must update this table).
-DRY_CELLS = {(1, 8): (False, True, False), (2, 8): (True, True, True), (3, 8): (True, False, True),
+#: what would separate them); on 59.3 s they do.  f_s is the level of a law flat above a knee, which
+#: these logs cannot tell from eq 37 (``dry_level.py``): -15, -0.5, +6.4 % on 15.6 s, -2.5 and
+#: +11 % on seeds 1 and 3 at 59.3 s (eq 37's asymptote: -5.7, +2.1, +24.5 %; +5.0, +27 %), its sigma
+#: with the form error covering the hidden value within 2.72 sigma on the nine logs of seeds 1-3
+#: (eq 50's alone, about the asymptote: up to 18.6); seed 1 at 15.6 s reads low by every law (the
+#: model's other terms take about 10 % there: f_travel -13 %).  Known misses are asserted as such
+#: (a fix must update this table).
+DRY_CELLS = {(1, 8): (False, False, False), (2, 8): (True, True, True), (3, 8): (True, True, True),
              (1, 31): (True, True, True), (3, 31): (True, False, True)}
+#: The hidden F lies within this many sigmas of the reported f_s (2.72 at most on the nine logs).
+DRY_SIGMAS = 3.0
 
 
 def _within(value, hidden, rtol=0.10):
@@ -230,7 +232,8 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     Compared with ``pulley_friction`` on that cable (``selection.one_cable_pair``) it is named alone
     where ``DRY_CELLS`` says so; where not, the verdict lists both as alternatives and the report's
     line says which tension range or log length would separate them (``report.look_alike_lines``).
-    f_s against the hidden F; f_travel against the hidden law's own mean force per unit of travel
+    f_s (the flat law's level, ``dry_level.py``) against the hidden F, within its value and within
+    ``DRY_SIGMAS`` of its sigma; f_travel against the hidden law's own mean force per unit of travel
     over the same encoder speeds (the generator's formula F tanh(theta_dot / 0.3), not eq 37)."""
     from identification.diagnosis.report import look_alike_lines
 
@@ -241,7 +244,9 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     assert (names == ["dry_friction"]) == alone, diag.verdict
     f = diag.findings[0]
     assert f.cables == [c + 1 for c in spec.cables]
-    assert _within(f.parameters[spec.symbol].value, spec.magnitude) == sized, (seed, moves, f.parameters[spec.symbol])
+    fs = f.parameters[spec.symbol]
+    assert _within(fs.value, spec.magnitude) == sized, (seed, moves, fs)
+    assert abs(fs.value - spec.magnitude) <= DRY_SIGMAS * fs.sigma, (seed, moves, fs)
     v = np.abs(diag.data.theta_dot_fast[:, spec.cables[0]])
     hidden_travel = np.sum(spec.magnitude * np.tanh(v / 0.3) * v) / np.sum(v)
     got = f.parameters[f"f_travel({spec.cables[0] + 1})"].value
