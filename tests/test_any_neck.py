@@ -207,13 +207,17 @@ def test_a_hidden_actuation_delay_on_the_ten_joint_neck_is_named(blind10):
 #: Extra dry friction on one cable: (named alone, f_s within 10 %, f_travel within 10 %) per seed and
 #: log length (moves: 8 give 15.6 s, 31 give 59.3 s), as measured (docs/your-own-neck.md section 7).
 #: On 15.6 s seed 1's dry and pulley laws compared on cable 1 do not separate (alternatives, with
-#: what would separate them); on 59.3 s they do.  Seed 3's f_s, eq 37's asymptote, reads +24 to +27 %
-#: (the seen friction is flat above 1 rad/s, the arctan overshoots it) while its f_travel, the law's
-#: mean force per unit of travel over the log, is within 10 %; seed 1's f_travel on 15.6 s reads
-#: -13 % (what the model's other terms take from it there; f_s -5.7 %).  Known misses are asserted
-#: as such (a fix must update this table).
-DRY_CELLS = {(1, 8): (False, True, False), (2, 8): (True, True, True), (3, 8): (True, False, True),
+#: what would separate them); on 59.3 s they do.  f_s is the level of a law flat above a knee, which
+#: these logs cannot tell from eq 37 (``dry_level.py``): -15, -0.5, +6.4 % on 15.6 s, -2.5 and
+#: +11 % on seeds 1 and 3 at 59.3 s (eq 37's asymptote: -5.7, +2.1, +24.5 %; +5.0, +27 %), its sigma
+#: with the form error covering the hidden value within 2.72 sigma on the nine logs of seeds 1-3
+#: (eq 50's alone, about the asymptote: up to 18.6); seed 1 at 15.6 s reads low by every law (the
+#: model's other terms take about 10 % there: f_travel -13 %).  Known misses are asserted as such
+#: (a fix must update this table).
+DRY_CELLS = {(1, 8): (False, False, False), (2, 8): (True, True, True), (3, 8): (True, True, True),
              (1, 31): (True, True, True), (3, 31): (True, False, True)}
+#: The hidden F lies within this many sigmas of the reported f_s (2.72 at most on the nine logs).
+DRY_SIGMAS = 3.0
 
 
 def _within(value, hidden, rtol=0.10):
@@ -228,7 +232,8 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     Compared with ``pulley_friction`` on that cable (``selection.one_cable_pair``) it is named alone
     where ``DRY_CELLS`` says so; where not, the verdict lists both as alternatives and the report's
     line says which tension range or log length would separate them (``report.look_alike_lines``).
-    f_s against the hidden F; f_travel against the hidden law's own mean force per unit of travel
+    f_s (the flat law's level, ``dry_level.py``) against the hidden F, within its value and within
+    ``DRY_SIGMAS`` of its sigma; f_travel against the hidden law's own mean force per unit of travel
     over the same encoder speeds (the generator's formula F tanh(theta_dot / 0.3), not eq 37)."""
     from identification.diagnosis.report import look_alike_lines
 
@@ -239,7 +244,9 @@ def test_extra_dry_friction_on_one_cable_of_the_ten_joint_neck_is_named_first(bl
     assert (names == ["dry_friction"]) == alone, diag.verdict
     f = diag.findings[0]
     assert f.cables == [c + 1 for c in spec.cables]
-    assert _within(f.parameters[spec.symbol].value, spec.magnitude) == sized, (seed, moves, f.parameters[spec.symbol])
+    fs = f.parameters[spec.symbol]
+    assert _within(fs.value, spec.magnitude) == sized, (seed, moves, fs)
+    assert abs(fs.value - spec.magnitude) <= DRY_SIGMAS * fs.sigma, (seed, moves, fs)
     v = np.abs(diag.data.theta_dot_fast[:, spec.cables[0]])
     hidden_travel = np.sum(spec.magnitude * np.tanh(v / 0.3) * v) / np.sum(v)
     got = f.parameters[f"f_travel({spec.cables[0] + 1})"].value
@@ -268,6 +275,33 @@ def test_the_travel_mean_friction_is_the_laws_work_over_the_distance():
     value, sigma, unit, _ = out["f_travel(2)"]
     assert value == pytest.approx(travel_mean_friction(0.5 * v, f_s, c)) and unit == "N"
     assert sigma == pytest.approx(0.3 * value / f_s)
+
+
+def test_the_flat_level_is_read_where_the_friction_is_flat_and_not_from_eq_37():
+    """``dry_level``'s rule on channels built here from their own formulas (speeds log-uniform over
+    0.05-20 rad/s with random signs, white noise of 0.5 N, the rows the force itself): a friction
+    flat above a knee, F tanh(|v| / 0.3) (the generator's law), is read by the flat law at F within
+    2 % and the rule takes it (eq 37's arctan fits it no better); eq (37) itself with c_s = 0.5 (the
+    paper's plant, still rising at 20 rad/s) fits far better than any flat law, so the rule keeps
+    eq 37's f_s."""
+    from identification.diagnosis.dry_level import C_GRID, chooses_flat, flat_fit
+
+    rng = np.random.default_rng(5)
+    v = np.exp(rng.uniform(np.log(0.05), np.log(20.0), 40000)) * rng.choice([-1.0, 1.0], 40000)
+    F, rows = 10.0, (lambda fast: fast)
+
+    def eq37(Y):                 # the arctan's least residual over its c_s (the candidate's search)
+        fits = [np.linalg.lstsq(a[:, None], Y, rcond=None) for a in
+                ((2 / np.pi) * np.arctan(c * v) for c in C_GRID)]
+        return min(float(f[1][0]) for f in fits)
+
+    for law, flat in ((F * np.tanh(np.abs(v) / 0.3), True), (F * (2 / np.pi) * np.arctan(0.5 * np.abs(v)), False)):
+        Y = np.sign(v) * law + rng.normal(0.0, 0.5, v.size)
+        level, knee, rss = flat_fit(rows, Y, v)
+        share = float(np.mean(np.abs(v) >= knee))
+        assert chooses_flat(rss, eq37(Y), share, 0.02) == flat, (level, knee, rss / eq37(Y))
+        if flat:
+            assert level == pytest.approx(F, rel=0.02) and knee < 1.0
 
 
 def test_the_separating_angle_is_where_the_leaders_tests_would_pass():

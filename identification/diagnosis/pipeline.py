@@ -13,6 +13,7 @@ from identification.diagnosis.candidates import MeasuredData, plant_model
 from identification.diagnosis.fitting import StepContext, fit_baseline
 from identification.diagnosis.errors_in_variables import corrected_parameters
 from identification.diagnosis.gains import AlphaHatErrors, alpha_hat_errors, residual_rms
+from identification.diagnosis.dry_level import dry_level
 from identification.diagnosis.hinge_size import hinge_interval
 from identification.diagnosis.parameters import (all_parameters, cables_of, chosen_fit, joints_of, shape_located,
                                                   term_parameters)
@@ -140,8 +141,11 @@ def _finding_parameters(ctx: StepContext, cand, state) -> dict:
     columns need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`;
     ``state`` the fit state the step's baseline started from), and a hinge friction's size on a
     neck with fewer cables than joints the middle of its estimates with their form error
-    (:func:`identification.diagnosis.hinge_size.hinge_interval`)."""
-    return hinge_interval(ctx, cand, corrected_parameters(ctx, cand, term_parameters(ctx, cand), state))
+    (:func:`identification.diagnosis.hinge_size.hinge_interval`), and a dry friction's f_s the level
+    where the log's friction is flat when the log cannot tell that law from eq (37)
+    (:func:`identification.diagnosis.dry_level.dry_level`)."""
+    return dry_level(ctx, cand, hinge_interval(ctx, cand, corrected_parameters(ctx, cand, term_parameters(ctx, cand),
+                                                                               state)))
 
 
 def diagnose_log(log: Log | str | os.PathLike, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,
