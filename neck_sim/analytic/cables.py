@@ -305,11 +305,9 @@ def _side_second(a, b, L, b4):      # pragma: no cover  (compiled)
 
 
 @kernel
-def _psi_second_kernel(a, b, L, b4):      # pragma: no cover  (compiled)
-    # _psi_second of one angle (its corner terms with _side_second's second derivatives)
-    sd = side_terms_kernel(a, b, L)
-    ddl_l, ddl_r = _side_second(a, b, L, b4)
-    k = corner_terms_kernel(a, b, L, (sd[0], sd[1], ddl_l, sd[3], sd[4], ddl_r))
+def _psi_second_kernel(a, b, L, sides):      # pragma: no cover  (compiled)
+    # _psi_second of one angle, ``sides`` its side terms with _side_second's second derivatives
+    k = corner_terms_kernel(a, b, L, sides)
     return ((k[0] - b / 2) * k[5] - (k[1] - 0.0) * k[4]) / (L * L)
 
 
@@ -349,10 +347,12 @@ def _kinematics_rows(alpha, geometry, cases, used, g0, g1, g2):      # pragma: n
             v2[SEG_RIGHT_SIDE] = ddl_r
             if used[SEG_RIGHT_STRUT, i]:
                 v0[SEG_RIGHT_STRUT] = r * (2 * np.arctan2(l_l * c, -b - l_l * s) - a)
-                v2[SEG_RIGHT_STRUT] = 2 * r * _psi_second_kernel(a, b, L, b4)
+                v2[SEG_RIGHT_STRUT] = 2 * r * _psi_second_kernel(a, b, L, (l_l, dl_l, ddl_l, l_r, dl_r, ddl_r))
             if used[SEG_LEFT_STRUT, i]:
                 v0[SEG_LEFT_STRUT] = r * (2 * np.arctan2(l_r * c, l_r * s - b) + a)
-                v2[SEG_LEFT_STRUT] = 2 * r * _psi_second_kernel(-a, b, L, b4)
+                sm = side_terms_kernel(-a, b, L)
+                ddm_l, ddm_r = _side_second(-a, b, L, b4)
+                v2[SEG_LEFT_STRUT] = 2 * r * _psi_second_kernel(-a, b, L, (sm[0], sm[1], ddm_l, sm[3], sm[4], ddm_r))
             for j in range(cases.shape[0]):
                 kind = cases[j, i]
                 g0[j, i, row] = v0[kind]
