@@ -99,3 +99,30 @@ def test_cable_kinematics_of_a_series_is_the_segment_arrays(neck):
     for g, w in zip(got, want):
         np.testing.assert_array_equal(g, w)
         assert g.strides == w.strides
+
+
+def test_slow_friction_basis_from_the_memo_is_the_chain_of_the_arctan():
+    """The eq (37) basis on the slow grid, its control-rate part kept in the memo that a reusing
+    preparation (a bootstrap replicate) shares, equals the whole chain applied to the arctan of the
+    encoders' speed: on the log, on a replicate whose lower camera cutoff moves the common
+    bandwidth, and for another c_s."""
+    from identification.preprocessing import Measurements, PreprocessSettings, prepare
+    from identification.regressors import friction_basis, slow_friction_basis
+
+    p = default_params(3)
+    rng = np.random.default_rng(2)
+    t = np.arange(6000) / 500.0
+    theta = np.cumsum(rng.standard_normal((t.size, 4)), axis=0) * 0.01 + 3.0 * np.sin(np.outer(t, [0.7, 1.1, 1.3, 0.5]))
+    force = 20.0 + rng.standard_normal((t.size, 4))
+    tc = np.arange(0.0, 12.0, 1 / 30.0)
+    alpha = 0.2 * np.sin(np.outer(tc, [0.4, 0.6, 0.9]))
+    log = prepare(Measurements(t, theta, force, tc, alpha), p,
+                  PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=3.0))
+    rep = prepare(Measurements(t, theta, force, tc, alpha + 0.001 * rng.standard_normal(alpha.shape)), p,
+                  PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=2.0), reuse=log)
+    assert rep.chain.common_hz != log.chain.common_hz
+    other = p.replace(**{"friction.c_s": 3.0 * p.friction.c_s})
+    for prep, params in ((log, p), (rep, p), (rep, p), (log, other), (rep, other)):
+        want = prep.chain(friction_basis(prep.fast.theta_dot, params))
+        np.testing.assert_array_equal(slow_friction_basis(prep, params), want)
+    assert rep._memo is log._memo and len(log._memo) == 2
