@@ -130,14 +130,18 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
     res[band] = _residuals(x, fs, fc, order, np.nonzero(band)[0])
     slope, intercept = np.polyfit(fc[band], res[band], 1)
     # the other candidates from the lowest up, until every channel's first crossing is among them:
-    # those between the crossings and the band are never read (a third of the camera's candidates)
+    # those between the crossings and the band are never read (a third of the camera's candidates),
+    # nor those above a channel's own crossing (left NaN: the camera's 10 channels cross at 2-6 Hz)
     rest = np.nonzero(~band)[0]
-    step = max(1, _LANES // x.shape[1])
-    for k in range(0, rest.size, step):
-        done = (intercept <= 0) | np.any(res[: rest[k]] <= intercept, axis=0)
-        if done.all():
+    k = 0
+    while k < rest.size:
+        todo = ~((intercept <= 0) | np.any(res[: rest[k]] <= intercept, axis=0))
+        if not todo.any():
             break
-        res[rest[k:k + step]] = _residuals(x, fs, fc, order, rest[k:k + step])
+        step = max(1, _LANES // int(np.count_nonzero(todo)))
+        rows = rest[k:k + step]
+        res[np.ix_(rows, np.nonzero(todo)[0])] = _residuals(x, fs, fc, order, rows, todo)
+        k += step
     chosen = np.empty(x.shape[1])
     for c in range(x.shape[1]):
         below = np.nonzero(res[:, c] <= intercept[c])[0]
@@ -155,8 +159,10 @@ def residual_cutoff(x: npt.ArrayLike, fs: float, *, order: int = 4, n_candidates
                         tuple(np.maximum(intercept, 0.0).tolist()))
 
 
-def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int, rows: np.ndarray) -> np.ndarray:
-    """R(f_c) = rms(x - lowpass(x, f_c)) per candidate ``fc[rows]`` and channel, (K, C), for x (T, C).
+def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int, rows: np.ndarray,
+               channels: np.ndarray | None = None) -> np.ndarray:
+    """R(f_c) = rms(x - lowpass(x, f_c)) per candidate ``fc[rows]`` and channel, (K, C), for x (T, C)
+    (of the ``channels`` (C,) bool alone when given: (K, count)).
 
     ``np.sqrt(np.mean((x - lowpass(x, fs, f, order)) ** 2, axis=0))`` for every f in ``fc``, bit
     for bit: with two channels or more numpy sums a (T, C) array over axis 0 row after row, as the
@@ -168,6 +174,9 @@ def _residuals(x: np.ndarray, fs: float, fc: np.ndarray, order: int, rows: np.nd
     sos, zi, edge = _candidate_designs(int(order), tuple(fc.tolist()), float(fs))
     if x.shape[0] <= edge:
         raise ValueError(f"lowpass: {x.shape[0]} samples; an order-{order} zero-phase filter needs more than {edge}")
+    # the kernel's channels are independent recursions: a subset gives the same numbers, even one
+    # channel (where numpy's own mean would sum pairwise)
+    x = x if channels is None else x[:, channels]
     return _residual_rms(sos[rows], zi[rows], np.ascontiguousarray(x), edge, _LANES)
 
 

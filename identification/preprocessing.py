@@ -191,6 +191,14 @@ class SlowChain(NamedTuple):
         """The chain without its first low-pass (for signals already filtered and differentiated)."""
         return self.after_decimation(self.decimated(v))
 
+    def to_decimation(self, v: npt.ArrayLike) -> np.ndarray:
+        """The chain up to the common bandwidth: motor-cutoff low-pass, decimation, camera window."""
+        return self.decimated(lowpass(np.asarray(v, dtype=float), self.motor_rate_hz, self.motor_hz, self.order))
+
+    def decimation_key(self) -> tuple:
+        """What :meth:`to_decimation` depends on besides its signal."""
+        return (self.motor_rate_hz, self.motor_hz, self.order, self.q, self.n_grid, self.idx.tobytes())
+
     def decimated(self, v: npt.ArrayLike) -> np.ndarray:
         """Decimation and the camera window: the part of the chain the common bandwidth does not change."""
         return decimate(v, self.q)[: self.n_grid][self.idx]
@@ -203,7 +211,7 @@ class SlowChain(NamedTuple):
 
     def __call__(self, v: npt.ArrayLike) -> np.ndarray:
         """A control-rate signal (T, ...) to the slow grid (S, ...), exactly as theta and f are."""
-        return self.after_lowpass(lowpass(np.asarray(v, dtype=float), self.motor_rate_hz, self.motor_hz, self.order))
+        return self.after_decimation(self.to_decimation(v))
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,6 +248,10 @@ class Prepared:
     # (routing, geometry, CableKinematics of alpha, alpha_dot): eq (27)'s lengths came with Z and
     # Zdot, which the joint dynamics take (``transmission_for``) instead of evaluating them again
     _cables: tuple | None = field(default=None, repr=False)
+    # control-rate signals derived from the encoders, through the chain up to the common bandwidth
+    # (``SlowChain.to_decimation``), by key: shared with every preparation that ``reuse``s this one
+    # (the camera-noise bootstrap's replicates), whose motors and chain up to there are these
+    _memo: dict = field(default_factory=dict, repr=False)
 
     def transmission_for(self, params: NeckParams) -> tuple[np.ndarray, np.ndarray] | None:
         """(Z, Zdot) (S, N, m) at ``alpha``, ``alpha_dot`` when prepared with the routing and
@@ -373,7 +385,8 @@ def prepare(meas: Measurements, params: NeckParams, settings: PreprocessSettings
 
     return Prepared(t=t[keep], **slow, alpha=alpha, alpha_dot=alpha_dot, alpha_ddot=alpha_ddot,
                     x_c=x_c, x_c_dot=x_c_dot, x_c_ddot=x_c_ddot, motor_rate_hz=fs, rate_hz=rate, decimation=q,
-                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated, _cables=cables)
+                    cutoffs=cutoffs, fast=fast, camera=cam, chain=chain, _decimated=decimated, _cables=cables,
+                    _memo={} if reuse is None else reuse._memo)
 
 
 def _geometry_key(params: NeckParams) -> tuple:

@@ -112,10 +112,24 @@ def slow_friction_basis(prep: Prepared, params: NeckParams) -> np.ndarray:
     diagnosis does).  The arctan of the filtered slow-grid speed would differ from the filtered
     arctan wherever the speed oscillates faster than the common cutoff (the ringing of a neck with
     fewer cables than N + 1: f_s 6-8 % low on the 10-joint, 4-cable neck).  A ``Prepared`` without a
-    chain (``excitation.prepared_from_prediction``, unfiltered) uses its slow-grid speed."""
-    if prep.chain is None or prep.fast is None:
+    chain (``excitation.prepared_from_prediction``, unfiltered) uses its slow-grid speed.
+
+    The control-rate part (the arctan at every encoder sample, the low-pass and the decimation) is
+    kept in ``prep``'s memo, which the camera-noise bootstrap's replicates share (their encoders
+    are the log's): only the common bandwidth, which moves with a replicate's camera cutoff, is
+    applied on every call."""
+    chain, fast = prep.chain, prep.fast
+    if chain is None or fast is None:
         return friction_basis(prep.theta_dot, params)
-    return prep.chain(friction_basis(prep.fast.theta_dot, params))
+    c_s = np.asarray(params.friction.c_s, dtype=float)
+    key = ("friction_basis", c_s.shape, c_s.tobytes(), chain.decimation_key())
+    hit = prep._memo.get(key)
+    if hit is None or hit[0] is not fast.theta_dot:
+        if len(prep._memo) >= 16:
+            prep._memo.clear()
+        hit = (fast.theta_dot, chain.to_decimation(friction_basis(fast.theta_dot, params)))
+        prep._memo[key] = hit
+    return chain.after_decimation(hit[1])
 
 
 def tension_from_forces(prep: Prepared, params: NeckParams, f_s: npt.ArrayLike) -> np.ndarray:

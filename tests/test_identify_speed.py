@@ -1,9 +1,10 @@
 """The identification's fast paths against the computations they replace, bit for bit.
 
-The camera-noise bootstrap repeats the camera's residual analysis and the joint dynamics on every
-replicate; both have a faster form (one compiled call for all candidate cutoffs, computing only the
-candidates the choice reads; one pass for Z, M, c and g).  Each must give the very numbers of the
-plain computation kept here as the reference.  (That the threaded bootstrap's prepare with
+The camera-noise bootstrap repeats the camera's residual analysis, the cable kinematics and the
+joint dynamics on every replicate; each has a faster form (one compiled call for all candidate
+cutoffs, computing only the candidates the choice reads; one compiled pass over the samples for the
+lengths, Z and Zdot; one pass for Z, M, c and g).  Each must give the very numbers of the plain
+computation kept here as the reference.  (That the threaded bootstrap's prepare with
 ``transmission=True`` equals prepare without it is held by
 ``test_identify_coverage.py::test_the_threaded_bootstrap_is_the_replicates_run_one_after_another``.)
 """
@@ -78,3 +79,50 @@ def test_joint_dynamics_is_the_four_functions(neck):
     for got in (joint_dynamics(a, ad, p), joint_dynamics(a, ad, p, transmission=(kin.Z, kin.Zdot))):
         for g, w in zip(got, want):
             np.testing.assert_array_equal(g, w)
+
+
+@pytest.mark.parametrize("neck", ["paper", "paper5", "neck10x4", "paper10"])
+def test_cable_kinematics_of_a_series_is_the_segment_arrays(neck):
+    """Lengths, Z and Zdot of a series of poses (the compiled pass over samples) equal the
+    segment arrays' (``_segments`` gathered by the routing, as before), bit for bit and with the
+    same memory layout (the products downstream and the lengths' sum over joints depend on it)."""
+    from neck_sim.analytic import cables
+
+    p = {"paper": default_params(3), "paper5": default_params(5), "paper10": default_params(10)}.get(neck) \
+        or example_params(neck)
+    rng = np.random.default_rng(5)
+    a = rng.uniform(-p.geometry.alpha_max, p.geometry.alpha_max, (301, p.n_joints))
+    ad = rng.uniform(-3.0, 3.0, a.shape)
+    seg = cables._evaluate(a, p, (0, 1, 2))
+    want = (cables._lengths(a, p, seg[0]),) + cables._z_and_dot(seg, ad, p)
+    got = cable_kinematics(a, ad, p)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+        assert g.strides == w.strides
+
+
+def test_slow_friction_basis_from_the_memo_is_the_chain_of_the_arctan():
+    """The eq (37) basis on the slow grid, its control-rate part kept in the memo that a reusing
+    preparation (a bootstrap replicate) shares, equals the whole chain applied to the arctan of the
+    encoders' speed: on the log, on a replicate whose lower camera cutoff moves the common
+    bandwidth, and for another c_s."""
+    from identification.preprocessing import Measurements, PreprocessSettings, prepare
+    from identification.regressors import friction_basis, slow_friction_basis
+
+    p = default_params(3)
+    rng = np.random.default_rng(2)
+    t = np.arange(6000) / 500.0
+    theta = np.cumsum(rng.standard_normal((t.size, 4)), axis=0) * 0.01 + 3.0 * np.sin(np.outer(t, [0.7, 1.1, 1.3, 0.5]))
+    force = 20.0 + rng.standard_normal((t.size, 4))
+    tc = np.arange(0.0, 12.0, 1 / 30.0)
+    alpha = 0.2 * np.sin(np.outer(tc, [0.4, 0.6, 0.9]))
+    log = prepare(Measurements(t, theta, force, tc, alpha), p,
+                  PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=3.0))
+    rep = prepare(Measurements(t, theta, force, tc, alpha + 0.001 * rng.standard_normal(alpha.shape)), p,
+                  PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=2.0), reuse=log)
+    assert rep.chain.common_hz != log.chain.common_hz
+    other = p.replace(**{"friction.c_s": 3.0 * p.friction.c_s})
+    for prep, params in ((log, p), (rep, p), (rep, p), (log, other), (rep, other)):
+        want = prep.chain(friction_basis(prep.fast.theta_dot, params))
+        np.testing.assert_array_equal(slow_friction_basis(prep, params), want)
+    assert rep._memo is log._memo and len(log._memo) == 2

@@ -26,13 +26,14 @@ Sign convention -- written here once, held by ``tests/test_conventions.py``:
 from __future__ import annotations
 
 import functools
+import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
 from neck_sim.analytic.geometry import (_corner_terms, _psi_derivatives, _side_terms, check_alpha, check_pose,
-                                        side_terms_kernel)
+                                        corner_terms_kernel, side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 from neck_sim.routing import (N_SEGMENT_KINDS, SEG_LEFT_END, SEG_LEFT_SIDE, SEG_LEFT_STRUT, SEG_RIGHT_END,
@@ -258,12 +259,105 @@ class CableKinematics(NamedTuple):
 
 def cable_kinematics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
                      allow_outside_range: bool = False) -> CableKinematics:
-    """Lengths, Z and Zdot in one pass (what a dynamics step needs)."""
+    """Lengths, Z and Zdot in one pass (what a dynamics step needs).
+
+    A series of poses (alpha, alpha_dot (S, N)) runs :func:`_kinematics_rows`, one compiled
+    pass over the samples that evaluates only the segment kinds the routing puts on each joint (a
+    camera-noise bootstrap replicate of the 10-joint neck evaluates these at every sample); the
+    numbers are those of the segment arrays below, bit for bit."""
     n = params.n_joints
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     ad = check_alpha(alpha_dot, n, "alpha_dot")
+    if a.ndim == 2 and ad.shape == a.shape:
+        return _batched_kinematics(a, ad, params)
     seg = _evaluate(a, params, (0, 1, 2))
     return CableKinematics(_lengths(a, params, seg[0]), *_z_and_dot(seg, ad, params))
+
+
+def _batched_kinematics(a: np.ndarray, ad: np.ndarray, params: NeckParams) -> CableKinematics:
+    """:func:`cable_kinematics` of poses a (S, N) by :func:`_kinematics_rows`."""
+    cases, straight, _ = _routing_terms(params)
+    (m, n), rows = cases.shape, a.shape[0]
+    used = np.zeros((N_SEGMENT_KINDS, n), np.bool_)
+    used[cases, np.arange(n)] = True
+    # gathered segments laid out as _gather lays out its result (samples innermost): the sums,
+    # negations and products below then run in numpy's order for that layout, and Z, Zdot come out
+    # with the strides the products downstream (M's Z Z^T, the torque rows' einsums) saw before
+    g0, g1, g2 = (np.empty((m, n, rows)) for _ in range(3))
+    b, L, r = _geom(params)
+    # b ** 4 as Python computes it (the numpy formula's power of a scalar), passed in
+    _kinematics_rows(np.ascontiguousarray(a), np.array([b, L, r, b ** 4]), np.ascontiguousarray(cases), used,
+                     g0, g1, g2)
+    g0, g1, g2 = (g.transpose(2, 0, 1) for g in (g0, g1, g2))
+    return CableKinematics(g0.sum(axis=-1) - straight, -np.swapaxes(g1, -1, -2),
+                           -np.swapaxes(g2, -1, -2) * ad[..., :, None])
+
+
+@kernel
+def _side_second(a, b, L, b4):      # pragma: no cover  (compiled)
+    # ddl_l, ddl_r of _side_terms with numpy's arithmetic: q ** 3 of an array is pow(q, 3.0) and
+    # b ** 4 Python's pow, where the compiled twin multiplies (an ulp apart at 6 % of the angles)
+    s, c = np.sin(a / 2), np.cos(a / 2)
+    q = np.sqrt(L * L - (b * c) * (b * c))
+    u = 0.5 * np.sin(a)
+    ddq = b * b * np.cos(a) / (4 * q) - b4 * u * u / (4 * math.pow(q, 3.0))
+    return ddq + b * s / 4, ddq - b * s / 4
+
+
+@kernel
+def _psi_second_kernel(a, b, L, sides):      # pragma: no cover  (compiled)
+    # _psi_second of one angle, ``sides`` its side terms with _side_second's second derivatives
+    k = corner_terms_kernel(a, b, L, sides)
+    return ((k[0] - b / 2) * k[5] - (k[1] - 0.0) * k[4]) / (L * L)
+
+
+@kernel
+def _kinematics_rows(alpha, geometry, cases, used, g0, g1, g2):      # pragma: no cover
+    # per sample and joint: the segment kinds ``used`` (K, N) there, each by _segments' formula
+    # and operation order (orders 0 and 2; order 1 is _segment_slopes' twin), gathered by the
+    # routing's cases (m, N) into g0, g1, g2 (m, N, R), the segments' orders 0, 1, 2
+    b, L, r, b4 = geometry[0], geometry[1], geometry[2], geometry[3]
+    K = used.shape[0]
+    v0 = np.zeros(K)
+    v1 = np.zeros(K)
+    v2 = np.zeros(K)
+    for row in range(alpha.shape[0]):
+        for i in range(alpha.shape[1]):
+            a = alpha[row, i]
+            half = a / 2
+            s, c = np.sin(half), np.cos(half)
+            sd = side_terms_kernel(a, b, L)
+            ddl_l, ddl_r = _side_second(a, b, L, b4)
+            l_l, dl_l, l_r, dl_r = sd[0], sd[1], sd[3], sd[4]
+            t_l, t_r = np.sqrt(l_l * l_l - r * r), np.sqrt(l_r * l_r - r * r)
+            sl = _slopes_kernel(a, b, L, r, sd)
+            for kind in range(1, K):
+                v1[kind] = sl[kind - 1]
+            if used[SEG_LEFT_END, i]:
+                v0[SEG_LEFT_END] = t_l - r * np.arctan2(t_l, r) + -1.0 * r * half
+                q = dl_l * r
+                v2[SEG_LEFT_END] = ddl_l * t_l / l_l + q * q / (t_l * l_l * l_l) if r > 0 else ddl_l
+            if used[SEG_RIGHT_END, i]:
+                v0[SEG_RIGHT_END] = t_r - r * np.arctan2(t_r, r) + 1.0 * r * half
+                q = dl_r * r
+                v2[SEG_RIGHT_END] = ddl_r * t_r / l_r + q * q / (t_r * l_r * l_r) if r > 0 else ddl_r
+            v0[SEG_LEFT_SIDE] = l_l - r * a
+            v2[SEG_LEFT_SIDE] = ddl_l
+            v0[SEG_RIGHT_SIDE] = l_r + r * a
+            v2[SEG_RIGHT_SIDE] = ddl_r
+            if used[SEG_RIGHT_STRUT, i]:
+                v0[SEG_RIGHT_STRUT] = r * (2 * np.arctan2(l_l * c, -b - l_l * s) - a)
+                v2[SEG_RIGHT_STRUT] = 2 * r * _psi_second_kernel(a, b, L, (l_l, dl_l, ddl_l, l_r, dl_r, ddl_r))
+            if used[SEG_LEFT_STRUT, i]:
+                v0[SEG_LEFT_STRUT] = r * (2 * np.arctan2(l_r * c, l_r * s - b) + a)
+                sm = side_terms_kernel(-a, b, L)
+                ddm_l, ddm_r = _side_second(-a, b, L, b4)
+                v2[SEG_LEFT_STRUT] = 2 * r * _psi_second_kernel(-a, b, L, (sm[0], sm[1], ddm_l, sm[3], sm[4], ddm_r))
+            for j in range(cases.shape[0]):
+                kind = cases[j, i]
+                g0[j, i, row] = v0[kind]
+                g1[j, i, row] = v1[kind]
+                g2[j, i, row] = v2[kind]
 
 
 def transmission_terms(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,

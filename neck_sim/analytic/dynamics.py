@@ -115,19 +115,15 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
             rqx, rqy = cp * qx - sp * qy, sp * qx + cp * qy
             rdx, rdy = cp * dqx - sp * dqy, sp * dqx + cp * dqy
             rddx, rddy = cp * ddqx - sp * ddqy, sp * ddqx + cp * ddqy
-            for kk in range(n):
-                if kk < i:
-                    Jx[kk] = Jo[0, kk] - rqy
-                    Jy[kk] = Jo[1, kk] + rqx
-                    Jr[kk] = 1.0
-                elif kk == i:
-                    Jx[kk] = rdx
-                    Jy[kk] = rdy
-                    Jr[kk] = db
-                else:
-                    Jx[kk] = 0.0
-                    Jy[kk] = 0.0
-                    Jr[kk] = 0.0
+            # joints above i do not move this body: their entries are never read (every sum below
+            # runs to i; the payload's, at i = n - 1, too)
+            for kk in range(i):
+                Jx[kk] = Jo[0, kk] - rqy
+                Jy[kk] = Jo[1, kk] + rqx
+                Jr[kk] = 1.0
+            Jx[i] = rdx
+            Jy[i] = rdy
+            Jr[i] = db
             hx = hox - phid * phid * rqx - 2 * phid * w * rdy + w * w * rddx
             hy = hoy - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy
             hr = ddb * w * w
