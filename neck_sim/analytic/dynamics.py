@@ -12,6 +12,10 @@ potential of gravity (along -y) and of the side springs.  Motors add (eqs 24, 26
 
     M = M_m + I_a (R/r_d)^2 Z Z^T,    c = c_m + I_a (R/r_d)^2 Z Zdot^T alpha_dot.
 
+Where only the torque M alpha_ddot + c + g is needed, ``inverse_dynamics`` sums each body's
+m J^T (J alpha_ddot + h) without forming M: O(N^2) per sample, not O(N^3).  The cables' law
+(eq 54) is :mod:`neck_sim.analytic.cable_law`, re-exported here.
+
 Elastic cables use the sign convention of :mod:`neck_sim.analytic.cables`:
 x_c = l_c - l_c0 + (r_d/R) theta, so that eqs (29), (30) read
 
@@ -37,7 +41,7 @@ from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
-           "bias_forces", "JointDynamics", "joint_dynamics", "inverse_dynamics", "inverse_linkage_kernel",
+           "bias_forces", "JointDynamics", "joint_dynamics", "inverse_dynamics",
            "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
            "motor_friction", "cable_tension", "secant_stiffness", "cable_stiffness", "static_elongation",
            "euler_elongation", "elongation_step",
@@ -69,22 +73,14 @@ def linkage_constants(params: NeckParams) -> np.ndarray:
 def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarray, c: np.ndarray,
                    G: np.ndarray) -> None:
     """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`_linkage_pass`)."""
-    _linkage_pass(a, ad, ad, const, M, c, G, False)
+    _linkage_pass(a, ad, ad, const, M, c, G, np.empty((5, a.shape[0])), False)
 
 
 @kernel
-def inverse_linkage_kernel(a: np.ndarray, ad: np.ndarray, add: np.ndarray, const: np.ndarray, tau: np.ndarray,
-                           G: np.ndarray) -> None:
-    """M_m alpha_ddot + c_m (N,) and g (N,) of one sample into tau, G in O(N^2), M_m never formed:
-    each body's acceleration J alpha_ddot + h, then tau += m J^T a + I J_phi^T a_phi
-    (:func:`_linkage_pass`)."""
-    _linkage_pass(a, ad, add, const, np.empty((0, 0)), tau, G, True)
-
-
-@kernel
-def _linkage_pass(a, ad, add, const, M, c, G, inverse) -> None:
-    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G or, ``inverse``, M_m add + c_m into c
-    (M untouched).
+def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
+    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G; ``inverse``: M_m add + c_m into c
+    in O(N^2), M untouched (each body's acceleration a = J add + h replaces h in c_m's sum).
+    ``work`` (5, N): scratch.
 
     Bodies of joint i: diagonal AD, diagonal BC, top bar CD (slender rods, I = m l^2 / 12).  Frame
     i has angle phi_i = sum_{k<i} alpha_k and origin p_i; the top-bar midpoint m_i(alpha_i) is
@@ -104,11 +100,10 @@ def _linkage_pass(a, ad, add, const, M, c, G, inverse) -> None:
         M[:, :] = 0.0
     c[:] = 0.0
     G[:] = 0.0
-    Jo = np.zeros((2, n))             # frame-origin Jacobian J_{p_i}
+    Jo = work[:2]                     # frame-origin Jacobian J_{p_i}
+    Jo[:, :] = 0.0
     hox, hoy = 0.0, 0.0               # frame-origin acceleration h_{p_i}
-    Jx = np.empty(n)
-    Jy = np.empty(n)
-    Jr = np.empty(n)
+    Jx, Jy, Jr = work[2], work[3], work[4]
     phi, phid = 0.0, 0.0
     ax, bx = -b / 2, b / 2
     for i in range(n):
@@ -193,14 +188,16 @@ def _linkage_pass(a, ad, add, const, M, c, G, inverse) -> None:
 
 @kernel
 def _linkage_rows(a, ad, const, M, c, G) -> None:
+    work = np.empty((5, a.shape[1]))    # scratch shared by the samples
     for r in range(a.shape[0]):
-        linkage_kernel(a[r], ad[r], const, M[r], c[r], G[r])
+        _linkage_pass(a[r], ad[r], ad[r], const, M[r], c[r], G[r], work, False)
 
 
 @kernel
 def _inverse_rows(a, ad, add, const, tau, G) -> None:
+    work, none = np.empty((5, a.shape[1])), np.empty((0, 0))
     for r in range(a.shape[0]):
-        inverse_linkage_kernel(a[r], ad[r], add[r], const, tau[r], G[r])
+        _linkage_pass(a[r], ad[r], add[r], const, none, tau[r], G[r], work, True)
 
 
 def linkage_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
@@ -287,7 +284,7 @@ def inverse_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, alpha_ddot:
                      *, allow_outside_range: bool = False,
                      transmission: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """tau = M alpha_ddot + c + g with the motors (eqs 24, 26 corrected, erratum 5), (..., N) N m,
-    without forming M: the linkage's part per sample in O(N^2) (:func:`inverse_linkage_kernel`),
+    without forming M: the linkage's part per sample in O(N^2) (:func:`_linkage_pass`),
     the motors' I_a (R/r_d)^2 Z (Z^T alpha_ddot + Zdot^T alpha_dot).  alpha, alpha_dot,
     alpha_ddot (..., N) rad, rad/s, rad/s^2; ``transmission`` as in :func:`joint_dynamics`."""
     n = params.n_joints
