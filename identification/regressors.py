@@ -38,13 +38,15 @@ import numpy as np
 import numpy.typing as npt
 
 from neck_sim.analytic import motor_friction
-from neck_sim.analytic.dynamics import JointDynamics
+from neck_sim.analytic.cables import transmission_terms
+from neck_sim.analytic.dynamics import JointDynamics, inverse_dynamics
 from neck_sim.analytic.dynamics import joint_dynamics as analytic_joint_dynamics
 from neck_sim.params import NeckParams
 
 from identification.preprocessing import Prepared
 
-__all__ = ["Regression", "Dynamics", "joint_dynamics", "friction_basis", "slow_friction_basis", "tension_from_forces",
+__all__ = ["Regression", "Dynamics", "joint_dynamics", "Torques", "joint_torques", "friction_basis",
+           "slow_friction_basis", "tension_from_forces",
            "taut_samples", "friction_model", "elastic_model", "variable_stiffness_model", "parameter_names"]
 
 
@@ -98,6 +100,23 @@ def joint_dynamics(prep: Prepared, params: NeckParams) -> Dynamics:
     """Z, M, c, g (with the geared motors, eqs 24 and 26 corrected) at the camera's joint angles."""
     cam = _need_camera(prep, "joint dynamics")
     return analytic_joint_dynamics(cam.alpha, cam.alpha_dot, params, transmission=prep.transmission_for(params))
+
+
+class Torques(NamedTuple):
+    """Z (S, N, m) m and tau = M alpha_ddot + c + g (S, N) N m with the motors: all the torque rows
+    read (the bootstrap's replicates use this, M never formed; the diagnosis needs :class:`Dynamics`)."""
+
+    Z: np.ndarray
+    tau: np.ndarray
+
+
+def joint_torques(prep: Prepared, params: NeckParams) -> Torques:
+    """Z and M alpha_ddot + c + g (eqs 24, 26 corrected) at the camera's joint angles, in O(N^2) per
+    sample (:func:`neck_sim.analytic.dynamics.inverse_dynamics`); equal to :func:`joint_dynamics`'
+    to rounding."""
+    cam = _need_camera(prep, "joint torques")
+    Z, Zdot = prep.transmission_for(params) or transmission_terms(cam.alpha, cam.alpha_dot, params)
+    return Torques(Z, inverse_dynamics(cam.alpha, cam.alpha_dot, cam.alpha_ddot, params, transmission=(Z, Zdot)))
 
 
 def friction_basis(theta_dot: npt.ArrayLike, params: NeckParams) -> np.ndarray:
@@ -170,19 +189,24 @@ def _diag_rows(cols: list[np.ndarray], taut: np.ndarray | None) -> tuple[np.ndar
     return W[keep], keep
 
 
-def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics, elastic: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(Z diag(a) (S*N, m), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,))."""
+def _torque_rows(prep: Prepared, params: NeckParams, dyn: Dynamics | Torques,
+                 elastic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(Z diag(a) (S*N, m), Z (f - I_a (R/r_d)^2 x_c_ddot) - M alpha_ddot - c - g (S*N,)); with
+    :class:`Torques`, M alpha_ddot + c + g is its tau."""
     cam = _need_camera(prep, "joint torques")
     a = slow_friction_basis(prep, params)
     Za = dyn.Z * a[:, None, :]
     f = prep.force
     if elastic:
         f = f - params.actuation.reflected_inertia * cam.x_c_ddot
-    y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, cam.alpha_ddot) - dyn.c - dyn.g)
+    if isinstance(dyn, Torques):
+        y = np.einsum("sij,sj->si", dyn.Z, f) - dyn.tau
+    else:
+        y = (np.einsum("sij,sj->si", dyn.Z, f) - np.einsum("sij,sj->si", dyn.M, cam.alpha_ddot) - dyn.c - dyn.g)
     return Za.reshape(-1, Za.shape[2]), y.reshape(-1)
 
 
-def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | None = None) -> Regression:
+def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | Torques | None = None) -> Regression:
     """Friction alone from the joint torques, rigid cables (eqs 46-47 as meant, eq 38 with x_c = 0)."""
     _need_camera(prep, "friction model (eqs 46-47)")
     dyn = dyn or joint_dynamics(prep, params)
@@ -192,7 +216,7 @@ def friction_model(prep: Prepared, params: NeckParams, dyn: Dynamics | None = No
 
 
 def elastic_model(prep: Prepared, params: NeckParams, *, weight: float = 100.0, taut: np.ndarray | None = None,
-                  dyn: Dynamics | None = None) -> Regression:
+                  dyn: Dynamics | Torques | None = None) -> Regression:
     """Friction, linear stiffness and damping (eqs 44-45 corrected), v = (k, c_a, f_s)."""
     cam = _need_camera(prep, "elastic model (eqs 44-45)")
     if not (np.isfinite(weight) and weight > 0):

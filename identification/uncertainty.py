@@ -217,7 +217,7 @@ def refit(prep: Prepared, params: NeckParams, taut: np.ndarray | None, *, weight
     Friction alone, then friction + elastic with ``taut`` fixed, then the variable-stiffness model
     with the elastic model's f_s (the friction model's without it); no statistics.
     """
-    dyn = reg.joint_dynamics(prep, params)
+    dyn = reg.joint_torques(prep, params)       # the rows need M alpha_ddot + c + g only, not M
     out = {"friction": _lstsq(*reg.friction_model(prep, params, dyn)[:2])}
     C = params.n_cables
     f_s = out["friction"]

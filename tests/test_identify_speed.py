@@ -1,9 +1,10 @@
-"""The identification's fast paths against the computations they replace, bit for bit.
+"""The identification's fast paths against the computations they replace, bit for bit (one to rounding).
 
 The camera-noise bootstrap repeats the camera's residual analysis, the cable kinematics and the
 joint dynamics on every replicate; each has a faster form (one compiled call for all candidate
 cutoffs, computing only the candidates the choice reads; one compiled pass over the samples for the
-lengths, Z and Zdot; one pass for Z, M, c and g).  Each must give the very numbers of the plain
+lengths, Z and Zdot; one pass for Z, M, c and g; one O(N^2) pass for M alpha_ddot + c + g without M,
+the bootstrap's torque rows, equal to rounding).  The others must give the very numbers of the plain
 computation kept here as the reference.  (That the threaded bootstrap's prepare with
 ``transmission=True`` equals prepare without it is held by
 ``test_identify_coverage.py::test_the_threaded_bootstrap_is_the_replicates_run_one_after_another``.)
@@ -126,3 +127,53 @@ def test_slow_friction_basis_from_the_memo_is_the_chain_of_the_arctan():
         want = prep.chain(friction_basis(prep.fast.theta_dot, params))
         np.testing.assert_array_equal(slow_friction_basis(prep, params), want)
     assert rep._memo is log._memo and len(log._memo) == 2
+
+
+@pytest.mark.parametrize("neck", ["paper", "neck10x4", "mirrored3", "payload"])
+def test_inverse_dynamics_is_m_alpha_ddot_plus_c_plus_g(neck):
+    """tau of the O(N^2) pass (each body's acceleration, no M) equals M alpha_ddot + c + g of
+    joint_dynamics (M formed) on random poses, speeds and accelerations, to 1e-14 of the largest
+    term (5e-16 achieved), with Z and Zdot evaluated or taken from cable_kinematics."""
+    from neck_sim.analytic.dynamics import inverse_dynamics
+
+    p = default_params(3).replace(**{"inertia.payload_mass": 0.2}) if neck == "payload" else \
+        default_params(3) if neck == "paper" else example_params(neck)
+    rng = np.random.default_rng(7)
+    limit = 0.8 * p.geometry.alpha_max
+    a = rng.uniform(-limit, limit, (301, p.n_joints))
+    ad = rng.uniform(-2.0, 2.0, a.shape)
+    add = rng.uniform(-20.0, 20.0, a.shape)
+    dyn = joint_dynamics(a, ad, p)
+    want = np.einsum("sij,sj->si", dyn.M, add) + dyn.c + dyn.g
+    scale = np.abs(np.einsum("sij,sj->sij", dyn.M, add)).max() + np.abs(dyn.c).max() + np.abs(dyn.g).max()
+    kin = cable_kinematics(a, ad, p)
+    for got in (inverse_dynamics(a, ad, add, p), inverse_dynamics(a, ad, add, p, transmission=(kin.Z, kin.Zdot))):
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-14 * scale)
+    # the batch axes are kept and a single sample works
+    np.testing.assert_allclose(inverse_dynamics(a[5], ad[5], add[5], p), want[5], rtol=0, atol=1e-14 * scale)
+
+
+def test_torque_rows_from_joint_torques_are_those_from_joint_dynamics():
+    """The bootstrap's torque rows (Z and tau = M alpha_ddot + c + g of the O(N^2) pass) equal those
+    of the joint dynamics with M, on a prepared log of the 10-joint, 4-cable neck with and without
+    the cable kinematics kept by prepare: W bit for bit, Y to 1e-14 of its largest entry."""
+    from identification.preprocessing import Measurements, PreprocessSettings, prepare
+    from identification import regressors as reg
+
+    p = example_params("neck10x4")
+    rng = np.random.default_rng(3)
+    t = np.arange(4000) / 500.0
+    theta = 3.0 * np.sin(np.outer(t, [0.7, 1.1, 1.3, 0.5])) + 0.01 * rng.standard_normal((t.size, 4))
+    force = 20.0 + rng.standard_normal((t.size, 4))
+    tc = np.arange(0.0, 8.0, 1 / 30.0)
+    alpha = 0.1 * np.sin(np.outer(tc, np.linspace(0.4, 1.3, p.n_joints)))
+    settings = PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=3.0)
+    for kept in (False, True):
+        prep = prepare(Measurements(t, theta, force, tc, alpha), p, settings, transmission=kept)
+        assert (prep.transmission_for(p) is not None) == kept
+        torques, dyn = reg.joint_torques(prep, p), reg.joint_dynamics(prep, p)
+        for model in (lambda d: reg.friction_model(prep, p, d), lambda d: reg.elastic_model(prep, p, dyn=d)):
+            got, want = model(torques), model(dyn)
+            np.testing.assert_array_equal(got.W, want.W)
+            np.testing.assert_allclose(got.Y, want.Y, rtol=0, atol=1e-14 * np.abs(want.Y).max())

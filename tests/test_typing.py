@@ -20,7 +20,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 PACKAGES = ("neck_sim", "controllers", "identification")
 
 PUBLIC_MODULES = [
-    "neck_sim.analytic", "neck_sim.analytic.cables", "neck_sim.analytic.dynamics",
+    "neck_sim.analytic", "neck_sim.analytic.cables", "neck_sim.analytic.cable_law", "neck_sim.analytic.dynamics",
     "neck_sim.analytic.estimation", "neck_sim.analytic.geometry", "neck_sim.analytic.statics",
     "neck_sim.analytic.workspace",
     "neck_sim.cli", "neck_sim.cli.check_cmd", "neck_sim.cli.common", "neck_sim.cli.crossval_cmd",

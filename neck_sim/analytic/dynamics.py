@@ -12,6 +12,10 @@ potential of gravity (along -y) and of the side springs.  Motors add (eqs 24, 26
 
     M = M_m + I_a (R/r_d)^2 Z Z^T,    c = c_m + I_a (R/r_d)^2 Z Zdot^T alpha_dot.
 
+Where only the torque M alpha_ddot + c + g is needed, ``inverse_dynamics`` sums each body's
+m J^T (J alpha_ddot + h) without forming M: O(N^2) per sample, not O(N^3).  The cables' law
+(eq 54) is :mod:`neck_sim.analytic.cable_law`, re-exported here.
+
 Elastic cables use the sign convention of :mod:`neck_sim.analytic.cables`:
 x_c = l_c - l_c0 + (r_d/R) theta, so that eqs (29), (30) read
 
@@ -28,13 +32,17 @@ import numpy as np
 import numpy.typing as npt
 
 from neck_sim.analytic.cables import cable_kinematics, transmission_matrix, transmission_terms
+from neck_sim.analytic.cable_law import (cable_stiffness, cable_tension, cap_elongation,  # noqa: F401 (re-exported)
+                                         elongation_series, elongation_step, euler_elongation, secant_stiffness,
+                                         static_elongation)
 from neck_sim.analytic.geometry import (check_alpha, check_pose, corner_terms_kernel, forward_kinematics,
                                         side_terms_kernel)
 from neck_sim.jit import dual, kernel
 from neck_sim.params import NeckParams
 
 __all__ = ["LinkageDynamics", "linkage_constants", "linkage_kernel", "linkage_dynamics", "mass_matrix",
-           "bias_forces", "JointDynamics", "joint_dynamics", "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
+           "bias_forces", "JointDynamics", "joint_dynamics", "inverse_dynamics",
+           "gravity_spring_torque", "potential_energy", "kinetic_energy", "arctan_friction",
            "motor_friction", "cable_tension", "secant_stiffness", "cable_stiffness", "static_elongation",
            "euler_elongation", "elongation_step",
            "elongation_series", "rigid_acceleration",
@@ -64,7 +72,15 @@ def linkage_constants(params: NeckParams) -> np.ndarray:
 @kernel
 def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarray, c: np.ndarray,
                    G: np.ndarray) -> None:
-    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`linkage_dynamics`).
+    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`_linkage_pass`)."""
+    _linkage_pass(a, ad, ad, const, M, c, G, np.empty((5, a.shape[0])), False)
+
+
+@kernel
+def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
+    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G; ``inverse``: M_m add + c_m into c
+    in O(N^2), M untouched (each body's acceleration a = J add + h replaces h in c_m's sum).
+    ``work`` (5, N): scratch.
 
     Bodies of joint i: diagonal AD, diagonal BC, top bar CD (slender rods, I = m l^2 / 12).  Frame
     i has angle phi_i = sum_{k<i} alpha_k and origin p_i; the top-bar midpoint m_i(alpha_i) is
@@ -80,14 +96,14 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
     mass = (const[2], const[2], const[3])
     inertia = (const[2] * L * L / 12.0, const[2] * L * L / 12.0, const[3] * b * b / 12.0)
     grav, payload, l0 = const[4], const[5], const[6]
-    M[:, :] = 0.0
+    if not inverse:
+        M[:, :] = 0.0
     c[:] = 0.0
     G[:] = 0.0
-    Jo = np.zeros((2, n))             # frame-origin Jacobian J_{p_i}
+    Jo = work[:2]                     # frame-origin Jacobian J_{p_i}
+    Jo[:, :] = 0.0
     hox, hoy = 0.0, 0.0               # frame-origin acceleration h_{p_i}
-    Jx = np.empty(n)
-    Jy = np.empty(n)
-    Jr = np.empty(n)
+    Jx, Jy, Jr = work[2], work[3], work[4]
     phi, phid = 0.0, 0.0
     ax, bx = -b / 2, b / 2
     for i in range(n):
@@ -128,17 +144,24 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
             hy = hoy - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy
             hr = ddb * w * w
             m, I = mass[body], inertia[body]
+            if inverse:               # the body's acceleration replaces h: c gets J^T (J add + h)
+                for kk in range(i + 1):
+                    hx += Jx[kk] * add[kk]
+                    hy += Jy[kk] * add[kk]
+                    hr += Jr[kk] * add[kk]
             # the upper triangle only, mirrored at the end: each term is symmetric bit for bit
             # (products commute, and of Jr[kk], Jr[ll] all but the diagonal's one is exactly 1)
             for kk in range(i + 1):
-                for ll in range(kk, i + 1):
-                    M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
+                if not inverse:
+                    for ll in range(kk, i + 1):
+                        M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
                 c[kk] += m * (Jx[kk] * hx + Jy[kk] * hy) + I * Jr[kk] * hr
                 G[kk] += grav * m * Jy[kk]
             if body == 2 and i == n - 1 and payload > 0:      # point mass at the head's bar centre
                 for kk in range(n):
-                    for ll in range(kk, n):
-                        M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
+                    if not inverse:
+                        for ll in range(kk, n):
+                            M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
                     c[kk] += payload * (Jx[kk] * hx + Jy[kk] * hy)
                     G[kk] += payload * grav * Jy[kk]
         G[i] += const[7 + i] * ((sd[0] - l0) * sd[1] + (sd[3] - l0) * sd[4])
@@ -157,15 +180,24 @@ def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarr
         hoy += -phid * phid * rmy + 2 * phid * w * rdmx + w * w * (sp * ddmx + cp * ddmy)
         phi += a[i]
         phid += w
-    for kk in range(n):
-        for ll in range(kk):
-            M[kk, ll] = M[ll, kk]
+    if not inverse:
+        for kk in range(n):
+            for ll in range(kk):
+                M[kk, ll] = M[ll, kk]
 
 
 @kernel
 def _linkage_rows(a, ad, const, M, c, G) -> None:
+    work = np.empty((5, a.shape[1]))    # scratch shared by the samples
     for r in range(a.shape[0]):
-        linkage_kernel(a[r], ad[r], const, M[r], c[r], G[r])
+        _linkage_pass(a[r], ad[r], ad[r], const, M[r], c[r], G[r], work, False)
+
+
+@kernel
+def _inverse_rows(a, ad, add, const, tau, G) -> None:
+    work, none = np.empty((5, a.shape[1])), np.empty((0, 0))
+    for r in range(a.shape[0]):
+        _linkage_pass(a[r], ad[r], add[r], const, none, tau[r], G[r], work, True)
 
 
 def linkage_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
@@ -248,6 +280,25 @@ def joint_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckP
                          lk.g)
 
 
+def inverse_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, alpha_ddot: npt.ArrayLike, params: NeckParams,
+                     *, allow_outside_range: bool = False,
+                     transmission: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """tau = M alpha_ddot + c + g with the motors (eqs 24, 26 corrected, erratum 5), (..., N) N m,
+    without forming M: the linkage's part per sample in O(N^2) (:func:`_linkage_pass`),
+    the motors' I_a (R/r_d)^2 Z (Z^T alpha_ddot + Zdot^T alpha_dot).  alpha, alpha_dot,
+    alpha_ddot (..., N) rad, rad/s, rad/s^2; ``transmission`` as in :func:`joint_dynamics`."""
+    n = params.n_joints
+    a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
+    a, ad, add = np.broadcast_arrays(a, check_alpha(alpha_dot, n, "alpha_dot"), check_alpha(alpha_ddot, n, "alpha_ddot"))
+    batch, rows = a.shape[:-1], int(np.prod(a.shape[:-1]))
+    tau, G = np.empty((rows, n)), np.empty((rows, n))
+    _inverse_rows(*(np.ascontiguousarray(x.reshape(rows, n)) for x in (a, ad, add)), linkage_constants(params), tau, G)
+    Z, Zdot = transmission or transmission_terms(a, ad, params, allow_outside_range=True)
+    zeta = np.einsum("...ij,...i->...j", Z, add) + np.einsum("...ij,...i->...j", Zdot, ad)
+    motors = params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", Z, zeta)
+    return (tau + G).reshape(batch + (n,)) + motors
+
+
 def gravity_spring_torque(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
     """g(alpha): gradient of the gravity and side-spring potential (eq 25), (..., N), N m."""
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
@@ -296,103 +347,6 @@ def motor_friction(theta_dot: npt.ArrayLike, params: NeckParams, f_s: npt.ArrayL
     """
     fs = np.asarray(params.friction.f_s if f_s is None else f_s, dtype=float)
     return arctan_friction(np.asarray(theta_dot, dtype=float), params.friction.c_s, fs)
-
-
-def cap_elongation(k, lam, t_cap: float) -> np.ndarray:
-    """Elongation (m) at which eq (54)'s resting tension reaches ``t_cap`` (N), where the cable law
-    continues with its tangent stiffness: t_cap / (k + lambda t_cap); ``k`` N/m, ``lam`` 1/m."""
-    return t_cap / (k + lam * t_cap)
-
-
-def cable_tension(x: npt.ArrayLike, x_dot: npt.ArrayLike, params: NeckParams, k: npt.ArrayLike | None = None,
-                  lam: npt.ArrayLike | None = None, c_a: npt.ArrayLike | None = None) -> np.ndarray:
-    """Tension-only cable tension of eq (54) solved for t, (..., m), N.
-
-    t = (k x + c_a x_dot) / (1 - lambda x) for x > 0, 0 when slack (x <= 0) and never negative.
-    Above ``cables.t_cap`` the elastic part continues with its tangent stiffness, so there is no
-    pole at x = 1/lambda.  Defaults are the plant's ``params.cables``.
-    """
-    cab = params.cables
-    k = np.asarray(cab.k if k is None else k, dtype=float)
-    lam = np.asarray(cab.lam if lam is None else lam, dtype=float)
-    c_a = np.asarray(cab.c_a if c_a is None else c_a, dtype=float)
-    x = np.asarray(x, dtype=float)
-    x_dot = np.asarray(x_dot, dtype=float)
-    x_star = cap_elongation(k, lam, cab.t_cap)
-    xe = np.minimum(x, x_star)
-    denom = 1.0 - lam * xe
-    elastic = k * xe / denom + np.maximum(x - x_star, 0.0) * k / (1.0 - lam * x_star) ** 2
-    t = elastic + c_a * x_dot / denom
-    return np.where(x > 0, np.maximum(t, 0.0), 0.0)
-
-
-@dual
-def secant_stiffness(tension: np.ndarray | float, k: np.ndarray | float,
-                     lam: np.ndarray | float) -> np.ndarray | float:
-    """Secant stiffness k + lambda max(t, 0) of eq (54), N/m: the formula :func:`cable_stiffness`
-    runs on arrays, with a compiled scalar twin ``.jit`` for the control step.
-
-    ``tension`` N, ``k`` N/m, ``lam`` 1/m; arrays broadcast (numpy) or scalars (``.jit``).
-    """
-    return k + lam * np.maximum(tension, 0.0)
-
-
-def cable_stiffness(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
-    """Secant stiffness k + lambda t of eq (54), (..., m) N/m, for tensions t (..., m) N
-    (negative tensions count as 0: a cable cannot push); ``k`` N/m, ``lam`` 1/m."""
-    return secant_stiffness(np.asarray(tension, dtype=float), np.asarray(k, dtype=float),
-                            np.asarray(lam, dtype=float))
-
-
-def static_elongation(tension: npt.ArrayLike, k: npt.ArrayLike, lam: npt.ArrayLike) -> np.ndarray:
-    """Eq (54) inverted at rest (x_dot = 0): x = t / (k + lambda t), (..., m) m, 0 for t <= 0.
-
-    The one definition of elongation from tension; :func:`elongation_step` and
-    :func:`elongation_series` add the damping c_a x_dot."""
-    return np.maximum(np.asarray(tension, dtype=float), 0.0) / cable_stiffness(tension, k, lam)
-
-
-@dual
-def euler_elongation(x: np.ndarray | float, tension: np.ndarray | float, dt: float, c_a: np.ndarray | float,
-                     stiffness: np.ndarray | float) -> np.ndarray | float:
-    """Eq (58): x + dt / c_a (t - K x), one explicit Euler step of eq (54) for a given secant
-    stiffness K = :func:`secant_stiffness` (N/m), with a compiled scalar twin ``.jit``.
-
-    ``x`` m, ``tension`` N, ``dt`` s, ``c_a`` N s/m > 0; arrays broadcast (numpy) or scalars.
-    """
-    return x + dt / c_a * (tension - stiffness * x)
-
-
-def elongation_step(x: npt.ArrayLike, tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: npt.ArrayLike,
-                    c_a: npt.ArrayLike) -> np.ndarray:
-    """Eq (58): one explicit Euler step of eq (54), c_a x_dot = t - (k + lambda t) x, (m,) m.
-
-    ``x`` (..., m) m the elongation at the start of the step, ``tension`` (..., m) N (>= 0)
-    applied during it, ``dt`` s, ``c_a`` N s/m > 0.  The compiled control step calls the same
-    formulas' twins (``secant_stiffness.jit``, ``euler_elongation.jit``)."""
-    return euler_elongation(x, tension, dt, c_a, cable_stiffness(tension, k, lam))
-
-
-def elongation_series(tension: npt.ArrayLike, dt: float, k: npt.ArrayLike, lam: npt.ArrayLike, c_a: npt.ArrayLike,
-                      x0: npt.ArrayLike | None = None) -> np.ndarray:
-    """Elongations x (T, m) m of eq (54) for tensions (T, m) N held per sample of ``dt`` s.
-
-    Each step is the exact solution x_inf + (x - x_inf) exp(-(k + lambda t) dt / c_a) with
-    x_inf = :func:`static_elongation` (stable for any dt; c_a = 0 gives the static elongation);
-    ``x0`` (m,) m defaults to the static elongation of the first sample."""
-    tension = np.asarray(tension, dtype=float)
-    c_a = np.asarray(c_a, dtype=float)
-    stiff = cable_stiffness(tension, k, lam)
-    x_inf = static_elongation(tension, k, lam)
-    if np.all(c_a == 0):
-        return x_inf
-    decay = np.exp(-stiff * dt / np.where(c_a > 0, c_a, 1.0))
-    decay = np.where(c_a > 0, decay, 0.0)
-    x = np.empty_like(tension)
-    x[0] = x_inf[0] if x0 is None else x0
-    for i in range(1, tension.shape[0]):
-        x[i] = x_inf[i] + (x[i - 1] - x_inf[i]) * decay[i]
-    return x
 
 
 def rigid_acceleration(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, f: npt.ArrayLike, params: NeckParams,
