@@ -66,9 +66,10 @@ def make_log(directory: str, neck: str, seed: int = 0) -> str:
 
 
 #: Hidden effects of the matrix and their level (x the generator's test magnitude): a side spring
-#: 50 % off on this neck's inverse-statics controller loses the neck at take-up, so 20 %.
+#: 50 % off on this neck's inverse-statics controller loses the neck at take-up, so 20 %.  Viscous
+#: friction (MuJoCo damping on a motor slide) is read on its settled fit where its cable is fast.
 DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction": 1.0, "dry_friction": 1.0,
-             "actuation_delay": 1.0}
+             "actuation_delay": 1.0, "viscous_friction": 1.0}
 
 
 def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bool = False,

@@ -331,7 +331,7 @@ def test_settle_passes_until_the_located_values_stop_moving():
     than one pass; a pass that never settles stops at ``max_passes``."""
     from types import SimpleNamespace
 
-    from identification.diagnosis.dry_level import SETTLED, settle
+    from identification.diagnosis.settled import SETTLED, settle
 
     a, b, sigma, calls = 0.7, 3.0, 0.01, []
 
