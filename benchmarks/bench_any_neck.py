@@ -33,6 +33,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3 --cases dry_friction --look-alikes --travel
     python benchmarks/bench_any_neck.py --detection --undecided --cases joint_friction none    # + "not decided" lines
     python benchmarks/bench_any_neck.py --detection --moves 31 --sigma --cases joint_friction  # + value, sigma, note
+    python benchmarks/bench_any_neck.py --detection --moves 31 --sigma --seeds 3 7 6 8 --cases viscous_friction  # fast cables
 """
 
 from __future__ import annotations
