@@ -5,9 +5,12 @@ tension/stiffness iteration from the step baseline's tensions: each pass subtrac
 motor-side forces from the motor force, so the tension, and with it the stiffness k + lambda T
 the elongation row divides by (eq 42), moves, and the next pass refits.  On the 10-joint, 4-cable
 neck's 59.3 s logs a cable moving at tens of rad/s leaves the motor-force candidates far from their
-fixed point after 3 passes: dry f_s 31 sigma (-21 % -> +0.6 % of the hidden force), pulley mu 27
-sigma, viscous c_v 16 sigma on two fresh seeds; every other effect moves by less than 1 sigma, and
-on the 3-joint neck and on clean logs every effect does.
+fixed point after 3 passes: on the dry logs of two fresh seeds dry f_s 31 sigma (-21 % -> +0.6 %
+of the hidden force), pulley mu 27 sigma, viscous c_v 16 sigma; every other effect moves by less
+than 1 sigma, and on the 3-joint neck and on clean logs every effect does.  Viscous friction hidden
+on a fast cable (``bench_any_neck.py --detection --moves 31 --sigma --cases viscous_friction``,
+seeds 3, 7, 6, 8) read -17.6, +0.3, -1.9, -1.0 % as made and +0.3, +2.2, -1.7, -0.5 % settled
+(eq 50's sigma 1-2 % of the value).
 
 The diagnosis names effects on the fits as made (their scores, p values and margins; settling
 every candidate of every step would change what it compares).  Once an effect is named, its
