@@ -33,6 +33,7 @@ channel's cross-validated improvement; its p values are then that channel's).
     python benchmarks/bench_any_neck.py --detection --seeds 1 2 3 --cases dry_friction --look-alikes --travel
     python benchmarks/bench_any_neck.py --detection --undecided --cases joint_friction none    # + "not decided" lines
     python benchmarks/bench_any_neck.py --detection --moves 31 --sigma --cases joint_friction  # + value, sigma, note
+    python benchmarks/bench_any_neck.py --detection --moves 31 --sigma --seeds 3 7 6 8 --cases viscous_friction  # fast cables
 """
 
 from __future__ import annotations
@@ -66,9 +67,10 @@ def make_log(directory: str, neck: str, seed: int = 0) -> str:
 
 
 #: Hidden effects of the matrix and their level (x the generator's test magnitude): a side spring
-#: 50 % off on this neck's inverse-statics controller loses the neck at take-up, so 20 %.
+#: 50 % off on this neck's inverse-statics controller loses the neck at take-up, so 20 %.  Viscous
+#: friction (MuJoCo damping on a motor slide) is read on its settled fit where its cable is fast.
 DETECTION = {"none": 1.0, "spring_error": 0.4, "payload": 1.0, "joint_friction": 1.0, "dry_friction": 1.0,
-             "actuation_delay": 1.0}
+             "actuation_delay": 1.0, "viscous_friction": 1.0}
 
 
 def detection(directory: str, seeds, moves: int = 8, cases=None, look_alikes: bool = False,

@@ -7,9 +7,10 @@ overshoots the flat part and its asymptote reads high (+27 % on one seed at 59.3
 applied friction alone, taken through the observations' chain, reads 1.25 F by eq 37 on that seed
 (the model's other columns take -0.5 %): the overshoot is the law's form, not the model's.
 
-This module first lets the candidate's fit settle (:func:`settle`: more passes of its tension and
-stiffness iteration until f_s stops moving; a fresh seed's cable 4, moving at tens of rad/s, read
--21 % after the fit's 3 passes and +0.6 % settled).  It then fits, to cable i's channel with the
+This module reads the candidate's fit settled (``settled.py``: more passes of its tension and
+stiffness iteration until its parameters stop moving, done by ``pipeline._finding_parameters``
+before this module; a fresh seed's cable 4, moving at tens of rad/s, read -21 % after the fit's 3
+passes and +0.6 % settled).  It fits, to cable i's channel with the
 candidate's own part added back (the other columns at their fit, rows weighted as the diagnosis'
 score weighs channels: :func:`cable_rows`), a law flat above a knee, clip(c theta_dot, -1, 1)
 (:func:`saturating`, c searched on :data:`C_GRID` through the same filter chain as the candidate's
@@ -50,7 +51,7 @@ import numpy as np
 
 from identification.diagnosis.statistics import channel_weights
 
-__all__ = ["C_GRID", "MIN_FLAT_SHARE", "SETTLED", "MAX_PASSES", "saturating", "settle", "cable_rows", "flat_fit",
+__all__ = ["C_GRID", "MIN_FLAT_SHARE", "saturating", "cable_rows", "flat_fit",
            "channel_levels", "form_error", "chooses_flat", "dry_level"]
 
 #: Slopes c (s/rad) of the flat law searched: knees 1/c from 0.03 to 20 rad/s.
@@ -58,35 +59,10 @@ C_GRID = tuple(float(c) for c in np.geomspace(0.05, 30.0, 61))
 #: Share of the cable's control-rate samples that must lie above the flat law's knee: the level is
 #: then read where the log has it, not extrapolated.
 MIN_FLAT_SHARE = 0.10
-#: The fit's tension and stiffness estimates have settled when one more pass moves every located
-#: f_s by less than this share of its sigma (eq 50).
-SETTLED = 0.25
-#: Passes at most (a fresh seed's cable 4 settles in 10, the other blind logs in 2-5).
-MAX_PASSES = 30
-
-
 def saturating(x: np.ndarray) -> np.ndarray:
     """The flat law's shape: x clipped to [-1, 1] (a force rising linearly to its level at the knee
     x = 1 and flat above)."""
     return np.clip(x, -1.0, 1.0)
-
-
-def settle(step: Callable, fit, indices, max_passes: int = MAX_PASSES):
-    """``fit`` after passes ``fit = step(fit)`` until one moves every ``fit.value[indices]`` by less
-    than :data:`SETTLED` of its ``sigma`` (or ``max_passes``).  ``step``: one pass of the fit's
-    tension/stiffness iteration (``candidates.fit_model`` with ``iterations=1`` from the fit's state):
-    the candidate's fit stops after ``settings.iterations`` passes from the baseline's tensions, which
-    on a cable moving at tens of rad/s leaves f_s far from the fixed point (-21 % -> -0.6 % over 7 more
-    passes on a fresh seed's cable 4, where the friction subtracted from the motor force changes the
-    tension and so the stiffness k + lambda T its elongation row divides by, eq 42)."""
-    idx = np.asarray(indices, int)
-    for _ in range(max_passes):
-        new = step(fit)
-        moved = np.abs(np.asarray(new.value)[idx] - np.asarray(fit.value)[idx])
-        fit = new
-        if np.all(moved < SETTLED * np.asarray(new.sigma)[idx]):
-            break
-    return fit
 
 
 def cable_rows(ctx, cand, cable: int, f_s: float) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
@@ -171,14 +147,13 @@ def chooses_flat(rss_flat: float, rss_eq37: float, share_above_knee: float, min_
 
 def dry_level(ctx, cand, parameters: dict) -> dict:
     """``parameters`` of a named dry friction with each located cable's f_s the flat law's level
-    where :func:`chooses_flat` says so, read on the fit settled (:func:`settle`), its sigma eq (50)'s
+    where :func:`chooses_flat` says so, read on the candidate's fit (settled by the caller:
+    ``settled.settled_candidate``), its sigma eq (50)'s
     of that fit and the form error (:func:`form_error` of eq 37's asymptote and the flat law's levels
     on both channels and on each alone) in quadrature, and its ``f_travel(i)`` the settled fit's
     (``DryFrictionColumns.derived_parameters``); else f_s and f_travel as fitted.  Other effects:
-    ``parameters`` itself.  ``ctx`` the step's ``fitting.StepContext``, ``cand`` the named candidate."""
-    from types import SimpleNamespace
-
-    from identification.diagnosis.candidates import fit_model
+    ``parameters`` itself.  ``ctx`` the step's ``fitting.StepContext``, ``cand`` the named candidate
+    with its fit settled, ``parameters`` read on that fit."""
     from identification.diagnosis.columns.dry_friction import DryFrictionColumns
     from identification.diagnosis.parameters import EQ50_NOTE, FORM_NOTE, cables_of
 
@@ -190,9 +165,7 @@ def dry_level(ctx, cand, parameters: dict) -> dict:
     index = {c: names.index(f"{symbol}({c})") for c in located if f"{symbol}({c})" in names}
     if not index:
         return parameters
-    fit = settle(lambda f: fit_model(ctx.data, f.model, ctx.split.train, ctx.scales, f.state, iterations=1),
-                 cand.fit, list(index.values()))
-    settled = SimpleNamespace(term=cand.term, fit=fit)
+    fit = cand.fit
     n_torque = int(ctx.split.train.sum()) * ctx.data.n
     out = dict(parameters)
     for name, p in parameters.items():
@@ -202,7 +175,7 @@ def dry_level(ctx, cand, parameters: dict) -> dict:
         cable = int(m.group(1))
         eq37, sigma50 = float(fit.value[index[cable]]), float(fit.sigma[index[cable]])
         theta_dot = ctx.data.theta_dot_fast[:, cable - 1]
-        rows, Y = cable_rows(ctx, settled, cable, eq37)
+        rows, Y = cable_rows(ctx, cand, cable, eq37)
         own = cand.term.identification.effect_class().unit(
             cand.term.identification.without_location(dict(cand.term.shape))).regressor(theta_dot[:, None])[:, 0]
         _, rss37 = _ls(rows(own), Y)
@@ -214,7 +187,7 @@ def dry_level(ctx, cand, parameters: dict) -> dict:
         form = form_error(eq37, levels)
         note = (f"the friction's level above {knee:.3g} rad/s ({100 * share:.0f} % of the samples), where a law flat "
                 f"above a knee, which this log cannot tell from eq (37) (residual {100 * (rss / rss37 - 1):+.2f} %), "
-                f"is flat (dry_level.py), read on the fit settled ({p.value:.4g} {p.unit} -> eq (37)'s asymptote "
+                f"is flat (dry_level.py), read on the fit settled (settled.py; eq (37)'s asymptote "
                 f"{eq37:.4g} +- {sigma50:.2g} {p.unit}); the torque rows alone {levels[1]:.4g}, the cable's row alone "
                 f"{levels[2]:.4g} {p.unit}; form error {form:.2g} {p.unit} (half their range); {FORM_NOTE}")
         out[name] = dataclasses.replace(p, value=float(level), sigma=float(math.hypot(sigma50, form)), note=note)
@@ -224,5 +197,5 @@ def dry_level(ctx, cand, parameters: dict) -> dict:
         if travel in parameters and travel in derived:
             t, ts, _, tnote = derived[travel]
             out[travel] = dataclasses.replace(parameters[travel], value=float(t), sigma=float(ts),
-                                              note=f"{tnote}, on the fit settled (dry_level.py); {EQ50_NOTE}")
+                                              note=f"{tnote}, on the fit settled (settled.py); {EQ50_NOTE}")
     return out

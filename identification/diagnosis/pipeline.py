@@ -21,6 +21,7 @@ from identification.diagnosis.resimulation import resimulate
 from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary
 from identification.diagnosis.search import retune_shapes
 from identification.diagnosis.selection import Step, run_step
+from identification.diagnosis.settled import settled_candidate
 from identification.diagnosis.settings import DiagnosisSettings, ModelLike, parse_model
 from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import borrowed_names, leftover_structure
@@ -137,15 +138,37 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
 
 
 def _finding_parameters(ctx: StepContext, cand, state) -> dict:
-    """A named candidate's parameters, its magnitudes corrected for the camera's noise where its
-    columns need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`;
-    ``state`` the fit state the step's baseline started from), and a hinge friction's size on a
-    neck with fewer cables than joints the middle of its estimates with their form error
+    """A named candidate's parameters read on its fit settled
+    (:func:`identification.diagnosis.settled.settled_candidate`: its tension/stiffness iteration run
+    until its own parameters stop moving; the verdict, the next step's baseline and the extended
+    model keep the fit as made), its magnitudes corrected for the camera's noise where its columns
+    need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`; ``state``
+    the fit state the step's baseline started from; its replicates are refitted as the candidate
+    was, with its passes, so the correction it extrapolates for the fit as made is added to the
+    settled value: :func:`_simex_on_settled`), and a hinge friction's size on a neck with fewer
+    cables than joints the middle of its estimates with their form error
     (:func:`identification.diagnosis.hinge_size.hinge_interval`), and a dry friction's f_s the level
     where the log's friction is flat when the log cannot tell that law from eq (37)
-    (:func:`identification.diagnosis.dry_level.dry_level`)."""
-    return dry_level(ctx, cand, hinge_interval(ctx, cand, corrected_parameters(ctx, cand, term_parameters(ctx, cand),
-                                                                               state)))
+    (:func:`identification.diagnosis.dry_level.dry_level`), both on the settled fit."""
+    settled = settled_candidate(ctx, cand)
+    parameters = _simex_on_settled(ctx, cand, settled.fit, term_parameters(ctx, settled), state)
+    return dry_level(ctx, settled, hinge_interval(ctx, settled, parameters))
+
+
+def _simex_on_settled(ctx: StepContext, cand, settled, parameters: dict, state) -> dict:
+    """``parameters`` (read on the fit ``settled``) with each magnitude SIMEX corrects
+    (:func:`corrected_parameters` on ``cand``'s fit as made, whose estimator its replicates repeat)
+    its corrected value plus the settling's move (settled minus as made); the others unchanged."""
+    made = chosen_fit(cand)
+    index = {n: k for k, n in enumerate(made.names)}
+    as_made = {n: (dataclasses.replace(p, value=float(made.value[index[n]]), sigma=float(made.sigma[index[n]]))
+                   if n in index else p) for n, p in parameters.items()}
+    corrected = corrected_parameters(ctx, cand, as_made, state)
+    out = dict(parameters)
+    for n, p in corrected.items():
+        if p is not as_made[n] and n in index:
+            out[n] = dataclasses.replace(p, value=p.value + float(settled.value[index[n]] - made.value[index[n]]))
+    return out
 
 
 def diagnose_log(log: Log | str | os.PathLike, model: ModelLike = None, settings: DiagnosisSettings | None = None, *,
