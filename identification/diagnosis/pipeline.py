@@ -21,7 +21,7 @@ from identification.diagnosis.resimulation import resimulate
 from identification.diagnosis.result import Diagnosis, ExtendedModel, Finding, Gain, ModelSummary
 from identification.diagnosis.search import retune_shapes
 from identification.diagnosis.selection import Step, run_step
-from identification.diagnosis.settled import settled_candidate
+from identification.diagnosis.settled import settled_candidate, settled_fit
 from identification.diagnosis.settings import DiagnosisSettings, ModelLike, parse_model
 from identification.diagnosis.split import split_samples
 from identification.diagnosis.structure import borrowed_names, leftover_structure
@@ -133,15 +133,18 @@ def _diagnose(data: MeasuredData, model: ModelLike, settings: DiagnosisSettings 
                                 shape_located(cables_of(chosen_fit(c), c.term), params, c.term),
                                 joints_of(chosen_fit(c), c.term), params, c,
                                 Gain(summaries[i], summaries[i + 1]), () if leftover is None else leftover.found))
+    # the extended model at the fixed point of its named terms, as their findings are read
+    named = [st.chosen.term for st in steps if st.chosen is not None]
+    final = settled_fit(StepContext(data, split, s, steps[-1].base, steps[-1].scales), fits[-1], named)
     return Diagnosis(source, spec, split, tuple(steps), tuple(findings), tuple(summaries),
-                     ExtendedModel.of(fits[-1], data.params), timings, s, data, leftover, tuple(notes), gaps, summary)
+                     ExtendedModel.of(final, data.params), timings, s, data, leftover, tuple(notes), gaps, summary)
 
 
 def _finding_parameters(ctx: StepContext, cand, state) -> dict:
     """A named candidate's parameters read on its fit settled
     (:func:`identification.diagnosis.settled.settled_candidate`: its tension/stiffness iteration run
-    until its own parameters stop moving; the verdict, the next step's baseline and the extended
-    model keep the fit as made), its magnitudes corrected for the camera's noise where its columns
+    until its own parameters stop moving; the verdict and the next step's baseline keep the fit as
+    made, the extended model is settled alike), its magnitudes corrected for the camera's noise where its columns
     need it (:func:`identification.diagnosis.errors_in_variables.corrected_parameters`; ``state``
     the fit state the step's baseline started from; its replicates are refitted as the candidate
     was, with its passes, so the correction it extrapolates for the fit as made is added to the

@@ -17,7 +17,10 @@ every candidate of every step would change what it compares).  Once an effect is
 magnitudes are read on its own fit settled (:func:`settled_candidate`: one-pass steps until every
 parameter of the candidate's own columns moves by less than :data:`SETTLED` of its sigma), which
 the magnitudes' later readings then use (``pipeline._finding_parameters``: SIMEX, the hinge's
-interval, the dry level).  The next step's baseline and the extended model keep the fit as made.
+interval, the dry level).  The next step's baseline keeps the fit as made; the extended model
+(what ``diagnose --extended`` writes) is the last model settled on every named term's parameters
+(:func:`settled_fit`), so that it holds the values the report gives (exactly so for the last step's
+finding when that step named one).
 
     >>> from identification.diagnosis.settled import settled_candidate
     >>> cand = settled_candidate(ctx, cand)        # doctest: +SKIP
@@ -31,7 +34,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["SETTLED", "MAX_PASSES", "settle", "own_indices", "settled_candidate"]
+__all__ = ["SETTLED", "MAX_PASSES", "settle", "own_indices", "settled_fit", "settled_candidate"]
 
 #: The fit's tension and stiffness estimates have settled when one more pass moves every settled
 #: value by less than this share of its sigma (eq 50).
@@ -65,18 +68,26 @@ def own_indices(fit, term) -> list[int]:
     return [k for k, n in enumerate(fit.names) if n.split("(")[0] in symbols]
 
 
-def settled_candidate(ctx, cand):
-    """``cand`` (a named ``candidate.CandidateScore``) with its fit settled (:func:`settle` of
-    one-pass ``candidates.fit_model`` steps from the fit's state on :func:`own_indices`); its
-    scores and evidence as they were.  ``cand`` itself when it has no fit or no column of its own
-    (a shape-only effect: its values come from the grid search, not the iteration)."""
+def settled_fit(ctx, fit, terms):
+    """``fit`` settled (:func:`settle` of one-pass ``candidates.fit_model`` steps from its state,
+    ``ctx`` a ``fitting.StepContext``) on the parameters of the own columns of ``terms``
+    (:func:`own_indices`); ``fit`` itself when they have none."""
     from identification.diagnosis.candidates import fit_model
 
+    indices = sorted({k for term in terms for k in own_indices(fit, term)})
+    if not indices:
+        return fit
+    return settle(lambda f: fit_model(ctx.data, f.model, ctx.split.train, ctx.scales, f.state, iterations=1),
+                  fit, indices)
+
+
+def settled_candidate(ctx, cand):
+    """``cand`` (a named ``candidate.CandidateScore``) with its fit settled (:func:`settled_fit` on
+    its own term); its scores and evidence as they were.  ``cand`` itself when it has no fit or no
+    column of its own (a shape-only effect: its values come from the grid search, not the iteration)."""
     if cand.fit is None:
         return cand
-    indices = own_indices(cand.fit, cand.term)
-    if not indices:
+    fit = settled_fit(ctx, cand.fit, [cand.term])
+    if fit is cand.fit:
         return cand
-    fit = settle(lambda f: fit_model(ctx.data, f.model, ctx.split.train, ctx.scales, f.state, iterations=1),
-                 cand.fit, indices)
     return dataclasses.replace(cand, model=dataclasses.replace(cand.model, fit=fit))
