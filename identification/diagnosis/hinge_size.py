@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 
 import numpy as np
 
@@ -137,13 +136,11 @@ def hinge_interval(ctx, cand, parameters: dict) -> dict:
     column = JointFrictionColumns.hinge_column(data, width)      # the fitted column (S, N), projected
     lever = hinge_lever(data.alpha, data.params)
     rate, common = data.prep.rate_hz, data.prep.cutoffs["common"].hz
-    symbol = JointFrictionColumns.columns[0].symbol
     out = dict(parameters)
-    for name, p in parameters.items():
-        m = re.fullmatch(rf"{re.escape(symbol)}\((\d+)\)", name)
-        if m is None or p.sigma is None:
+    for k, name in enumerate(JointFrictionColumns.columns[0].names(data.n, data.C)):
+        p = parameters.get(name)
+        if p is None or p.sigma is None:
             continue
-        k = int(m.group(1)) - 1
         r = fit.torque[:, k] + p.value * column[:, k]           # the channel with the hinge's own part
         est = size_estimates(r, lever[:, k], data.alpha_dot[:, k], ctx.split.train, rate, common, width)
         middle, sf = interval(est, p.value)
