@@ -269,19 +269,17 @@ def run(args: argparse.Namespace) -> int:
                     files={"--json": args.json, **{f"-o ({label})": namer(label) for label in names}})
     staged = _StagedLogs(namer)
     try:
+        # every run done: the logs published together
         if args.table3:
-            results = ex.table3(params, traj, laws[0], log_path=staged, progress=progress, seed=args.seed,
-                                controller_kwargs=kwargs, plant_factory=factory, stop_outside_range=True)
+            results = staged.publish(ex.table3(params, traj, laws[0], log_path=staged, progress=progress,
+                                               seed=args.seed, controller_kwargs=kwargs, plant_factory=factory,
+                                               stop_outside_range=True))
         else:
             ctrl_params = params.replace(**{"geometry.r": 0.0}) if args.no_pulleys else params
-            labelled = ex.control_tests(
+            labelled = staged.publish(ex.control_tests(
                 params, traj, laws, log_path=staged, progress=progress, seed=args.seed, rigid_cables=args.rigid_cables,
                 controller_params=ctrl_params, controller_kwargs=kwargs, controller=controller, plant_factory=factory,
-                stop_outside_range=True)
-        if args.table3:
-            results = staged.publish(results)
-        else:
-            labelled = staged.publish(labelled)
+                stop_outside_range=True))
     except BaseException as exc:
         refusal = _refusal(exc, args, controller, params.n_joints, staged, names)
         staged.discard()
