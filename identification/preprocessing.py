@@ -187,10 +187,6 @@ class SlowChain(NamedTuple):
     keep: np.ndarray
     order: int
 
-    def after_lowpass(self, v: npt.ArrayLike) -> np.ndarray:
-        """The chain without its first low-pass (for signals already filtered and differentiated)."""
-        return self.after_decimation(self.decimated(v))
-
     def to_decimation(self, v: npt.ArrayLike) -> np.ndarray:
         """The chain up to the common bandwidth: motor-cutoff low-pass, decimation, camera window."""
         return self.decimated(lowpass(np.asarray(v, dtype=float), self.motor_rate_hz, self.motor_hz, self.order))
