@@ -68,10 +68,10 @@ class DryFrictionColumns(MotorColumns):
         sigma): :func:`travel_mean_friction` over cable i's encoder speeds ``theta_dot`` (T, C)
         rad/s at the searched c_s; its sigma f_s's scaled alike (c_s held, as a grid search's)."""
         out = {}
-        for name, (value, sigma) in fitted.items():
-            if not name.startswith("f_s("):
+        for i, name in enumerate(cls.columns[0].names(0, theta_dot.shape[1])):
+            if name not in fitted:
                 continue
-            i = int(name[4:-1])
-            share = travel_mean_friction(theta_dot[:, i - 1], 1.0, shape["c_s"])
-            out[f"f_travel({i})"] = (value * share, None if sigma is None else abs(sigma) * share, "N", TRAVEL_NOTE)
+            value, sigma = fitted[name]
+            share = travel_mean_friction(theta_dot[:, i], 1.0, shape["c_s"])
+            out[f"f_travel({i + 1})"] = (value * share, None if sigma is None else abs(sigma) * share, "N", TRAVEL_NOTE)
         return out
