@@ -32,9 +32,16 @@ Measured on the blind dry logs of the 10-joint neck (docs/your-own-neck.md secti
 the hidden force: 59.3 s, seeds 1-7: -0.3, -3.0, +15.2, -0.2, -1.8, -0.1, +2.7 %, within 0.02-1.30
 of the sigma (3.5-11.6 % of the value; 0.9 % on seed 4, whose channels agree); seeds 1-3 at 15.6 s
 -12.4, +1.3, +8.5 % and at 30.8 s +6.1, -2.0, +21.7 %, within 1.58 sigma; fresh seeds 8 and 9, run
-after the rule was committed, -6.1 % (-1.43 sigma) and +3.0 % (+1.26).  The channels disagree by
+after the rule was committed, -6.1 % (-1.43 sigma) and +3.0 % (+1.26); fresh seeds 10 and 11,
+run later, +6.6 % (+1.08) and +0.7 % (+0.21).  The channels disagree by
 up to 34 % of the force (seed 3 at 30.8 s: the torque rows +8.5 %, the cable's row +34 %): the sigma is wide
-where they do, and that is what the log supports.
+where they do, and that is what the log supports.  What differs is the knee each channel picks
+alone: at the knee of both, seed 3's torque rows and cable's row read +14.8 and +17.1 % at 59.3 s.
+The level trades against the knee, which the camera's noise in the cable row's elongation (eq 27)
+and the fitted elastic law (eq 54) move.  A block bootstrap of the level reads 4.0-7.3 % of F on
+the 59.3 s logs of seeds 1-3.  Channel weights from each level's jackknife or bootstrap variance
+and a band-projected fit were tried and leave seed 3 at +11 to +20 % (docs/your-own-neck.md
+section 7).
 
     >>> from identification.diagnosis.dry_level import dry_level
     >>> parameters = dry_level(ctx, cand, parameters)        # doctest: +SKIP
