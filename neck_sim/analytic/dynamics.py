@@ -182,8 +182,8 @@ def _body_point(body, k, b, L):
 
 @kernel
 def _inverse_pass(a, ad, add, const, tau, work) -> None:
-    """tau = M_m add + c_m + g of one sample into tau (N,) in O(N), M_m never formed.  ``work``
-    (8, N): scratch.
+    """tau = M_m add + c_m + g (eq 30's left-hand side) of one sample into tau (N,) N m in O(N),
+    M_m never formed.  ``work`` (8, N): scratch.
 
     The same bodies, frames and Jacobians as :func:`_linkage_pass`, summed the other way round
     (Newton-Euler): a forward pass gives each body's acceleration J add + h (the frame origin's
@@ -222,23 +222,16 @@ def _inverse_pass(a, ad, add, const, tau, work) -> None:
             px, py = m * accx, m * (accy + grav)
             nz = inertia[body] * (phidd + db * u + ddb * w * w)
             t_own += rdx * px + rdy * py + db * nz
-            f_x += px
-            f_y += py
-            m_o += rqx * py - rqy * px + nz
+            f_x, f_y, m_o = f_x + px, f_y + py, m_o + rqx * py - rqy * px + nz
             if body == 2:                     # frame i+1: origin p_i + R(phi_i) m_i, m_i the top bar's centre
-                rmx[i], rmy[i], rdmx[i], rdmy[i] = rqx, rqy, rdx, rdy
-                aox = accx
-                aoy = accy
+                rmx[i], rmy[i], rdmx[i], rdmy[i], aox, aoy = rqx, rqy, rdx, rdy, accx, accy
         own[i], fx[i], fy[i], mo[i] = t_own, f_x, f_y, m_o
-        phi += a[i]
-        phid += w
-        phidd += u
+        phi, phid, phidd = phi + a[i], phid + w, phidd + u
     f_x, f_y, m_o = 0.0, 0.0, 0.0     # force of the bodies above joint i, moment about p_{i+1}
     for i in range(n - 1, -1, -1):
         tau[i] = own[i] + rdmx[i] * f_x + rdmy[i] * f_y + m_o
         m_o += mo[i] + rmx[i] * f_y - rmy[i] * f_x
-        f_x += fx[i]
-        f_y += fy[i]
+        f_x, f_y = f_x + fx[i], f_y + fy[i]
 
 
 @kernel
