@@ -222,7 +222,7 @@ def _inverse_pass(a, ad, add, const, tau, work) -> None:
             px, py = m * accx, m * (accy + grav)
             nz = inertia[body] * (phidd + db * u + ddb * w * w)
             t_own += rdx * px + rdy * py + db * nz
-            f_x, f_y, m_o = f_x + px, f_y + py, m_o + rqx * py - rqy * px + nz
+            f_x, f_y, m_o = f_x + px, f_y + py, m_o + (rqx * py - rqy * px + nz)
             if body == 2:                     # frame i+1: origin p_i + R(phi_i) m_i, m_i the top bar's centre
                 rmx[i], rmy[i], rdmx[i], rdmy[i], aox, aoy = rqx, rqy, rdx, rdy, accx, accy
         own[i], fx[i], fy[i], mo[i] = t_own, f_x, f_y, m_o
