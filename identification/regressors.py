@@ -111,7 +111,7 @@ class Torques(NamedTuple):
 
 
 def joint_torques(prep: Prepared, params: NeckParams) -> Torques:
-    """Z and M alpha_ddot + c + g (eqs 24, 26 corrected) at the camera's joint angles, in O(N^2) per
+    """Z and M alpha_ddot + c + g (eqs 24, 26 corrected) at the camera's joint angles, in O(N) per
     sample (:func:`neck_sim.analytic.dynamics.inverse_dynamics`); equal to :func:`joint_dynamics`'
     to rounding."""
     cam = _need_camera(prep, "joint torques")

@@ -3,7 +3,7 @@
 The camera-noise bootstrap repeats the camera's residual analysis, the cable kinematics and the
 joint dynamics on every replicate; each has a faster form (one compiled call for all candidate
 cutoffs, computing only the candidates the choice reads; one compiled pass over the samples for the
-lengths, Z and Zdot; one pass for Z, M, c and g; one O(N^2) pass for M alpha_ddot + c + g without M,
+lengths, Z and Zdot; one pass for Z, M, c and g; one O(N) pass for M alpha_ddot + c + g without M,
 the bootstrap's torque rows, equal to rounding).  The others must give the very numbers of the plain
 computation kept here as the reference.  (That the threaded bootstrap's prepare with
 ``transmission=True`` equals prepare without it is held by
@@ -131,7 +131,7 @@ def test_slow_friction_basis_from_the_memo_is_the_chain_of_the_arctan():
 
 @pytest.mark.parametrize("neck", ["paper", "neck10x4", "mirrored3", "payload"])
 def test_inverse_dynamics_is_m_alpha_ddot_plus_c_plus_g(neck):
-    """tau of the O(N^2) pass (each body's acceleration, no M) equals M alpha_ddot + c + g of
+    """tau of the O(N) pass (the bodies' forces carried down the chain, no M) equals M alpha_ddot + c + g of
     joint_dynamics (M formed) on random poses, speeds and accelerations, to 1e-14 of the largest
     term (5e-16 achieved), with Z and Zdot evaluated or taken from cable_kinematics."""
     from neck_sim.analytic.dynamics import inverse_dynamics
@@ -155,7 +155,7 @@ def test_inverse_dynamics_is_m_alpha_ddot_plus_c_plus_g(neck):
 
 
 def test_torque_rows_from_joint_torques_are_those_from_joint_dynamics():
-    """The bootstrap's torque rows (Z and tau = M alpha_ddot + c + g of the O(N^2) pass) equal those
+    """The bootstrap's torque rows (Z and tau = M alpha_ddot + c + g of the O(N) pass) equal those
     of the joint dynamics with M, on a prepared log of the 10-joint, 4-cable neck with and without
     the cable kinematics kept by prepare: W bit for bit, Y to 1e-14 of its largest entry."""
     from identification.preprocessing import Measurements, PreprocessSettings, prepare
@@ -177,3 +177,32 @@ def test_torque_rows_from_joint_torques_are_those_from_joint_dynamics():
             got, want = model(torques), model(dyn)
             np.testing.assert_array_equal(got.W, want.W)
             np.testing.assert_allclose(got.Y, want.Y, rtol=0, atol=1e-14 * np.abs(want.Y).max())
+
+
+@pytest.mark.parametrize("neck", ["paper", "neck10x4"])
+def test_refit_is_identify_on_the_same_preparation(neck):
+    """A bootstrap replicate's values (``refit``: torques of the O(N) pass, normal equations of W)
+    are identify's least-squares values (M formed, lstsq's SVD) on one prepared log with its slack
+    mask, per model to 1e-10 of the largest |value| (3e-11 achieved: the variable-stiffness
+    model's scaled condition number is 270-480 on this log)."""
+    from identification.paper import IdentificationSettings, identify
+    from identification.preprocessing import Measurements, PreprocessSettings, prepare
+    from identification.uncertainty import refit
+
+    p = default_params(3) if neck == "paper" else example_params(neck)
+    rng = np.random.default_rng(3)
+    t = np.arange(4000) / 500.0
+    m = p.n_cables
+    theta = 3.0 * np.sin(np.outer(t, np.linspace(0.5, 1.3, m))) + 0.01 * rng.standard_normal((t.size, m))
+    force = 20.0 + rng.standard_normal((t.size, m))
+    tc = np.arange(0.0, 8.0, 1 / 30.0)
+    alpha = 0.1 * np.sin(np.outer(tc, np.linspace(0.4, 1.3, p.n_joints)))
+    prep = prepare(Measurements(t, theta, force, tc, alpha), p,
+                   PreprocessSettings(motor_cutoff_hz=8.0, camera_cutoff_hz=3.0), transmission=True)
+    s = IdentificationSettings(bootstrap=0, reconstruct_alpha=False)
+    res = identify(prep, p, s)
+    got = refit(prep, p, res.series["taut"], weight=s.weight, models=("elastic", "variable"))
+    assert set(got) == {"friction", "elastic", "variable"}
+    for name, values in got.items():
+        want = getattr(res, name).value
+        np.testing.assert_allclose(values, want, rtol=0, atol=1e-10 * np.abs(want).max(), err_msg=name)

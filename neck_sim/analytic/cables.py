@@ -280,17 +280,15 @@ def _batched_kinematics(a: np.ndarray, ad: np.ndarray, params: NeckParams) -> Ca
     (m, n), rows = cases.shape, a.shape[0]
     used = np.zeros((N_SEGMENT_KINDS, n), np.bool_)
     used[cases, np.arange(n)] = True
-    # gathered segments laid out as _gather lays out its result (samples innermost): the sums,
-    # negations and products below then run in numpy's order for that layout, and Z, Zdot come out
-    # with the strides the products downstream (M's Z Z^T, the torque rows' einsums) saw before
-    g0, g1, g2 = (np.empty((m, n, rows)) for _ in range(3))
+    # laid out as numpy laid out the gathered segments' sums, negations and products (samples
+    # innermost): Z, Zdot come out with the strides the products downstream (M's Z Z^T, the torque
+    # rows' einsums) saw before
+    lengths, Z, Zdot = np.empty((m, rows)), np.empty((m, n, rows)), np.empty((m, rows, n))
     b, L, r = _geom(params)
     # b ** 4 as Python computes it (the numpy formula's power of a scalar), passed in
-    _kinematics_rows(np.ascontiguousarray(a), np.array([b, L, r, b ** 4]), np.ascontiguousarray(cases), used,
-                     g0, g1, g2)
-    g0, g1, g2 = (g.transpose(2, 0, 1) for g in (g0, g1, g2))
-    return CableKinematics(g0.sum(axis=-1) - straight, -np.swapaxes(g1, -1, -2),
-                           -np.swapaxes(g2, -1, -2) * ad[..., :, None])
+    _kinematics_rows(np.ascontiguousarray(a), np.ascontiguousarray(ad), np.array([b, L, r, b ** 4]),
+                     np.ascontiguousarray(cases), used, straight, lengths, Z, Zdot)
+    return CableKinematics(lengths.T, Z.transpose(2, 1, 0), Zdot.transpose(1, 2, 0))
 
 
 @kernel
@@ -312,10 +310,12 @@ def _psi_second_kernel(a, b, L, sides):      # pragma: no cover  (compiled)
 
 
 @kernel
-def _kinematics_rows(alpha, geometry, cases, used, g0, g1, g2):      # pragma: no cover
+def _kinematics_rows(alpha, alpha_dot, geometry, cases, used, straight, lengths, Z, Zdot):      # pragma: no cover
     # per sample and joint: the segment kinds ``used`` (K, N) there, each by _segments' formula
     # and operation order (orders 0 and 2; order 1 is _segment_slopes' twin), gathered by the
-    # routing's cases (m, N) into g0, g1, g2 (m, N, R), the segments' orders 0, 1, 2
+    # routing's cases (m, N): their sum over the joints in order minus ``straight`` (m,) into
+    # lengths (m, R), -(order 1) into Z (m, N, R) and -(order 2) alpha_dot into Zdot (m, R, N),
+    # each the operation numpy applied to the gathered arrays
     b, L, r, b4 = geometry[0], geometry[1], geometry[2], geometry[3]
     K = used.shape[0]
     v0 = np.zeros(K)
@@ -355,9 +355,14 @@ def _kinematics_rows(alpha, geometry, cases, used, g0, g1, g2):      # pragma: n
                 v2[SEG_LEFT_STRUT] = 2 * r * _psi_second_kernel(-a, b, L, (sm[0], sm[1], ddm_l, sm[3], sm[4], ddm_r))
             for j in range(cases.shape[0]):
                 kind = cases[j, i]
-                g0[j, i, row] = v0[kind]
-                g1[j, i, row] = v1[kind]
-                g2[j, i, row] = v2[kind]
+                if i == 0:
+                    lengths[j, row] = v0[kind]
+                else:
+                    lengths[j, row] += v0[kind]
+                Z[j, i, row] = -v1[kind]
+                Zdot[j, row, i] = -v2[kind] * alpha_dot[row, i]
+        for j in range(cases.shape[0]):
+            lengths[j, row] -= straight[j]
 
 
 def transmission_terms(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,

@@ -12,8 +12,8 @@ potential of gravity (along -y) and of the side springs.  Motors add (eqs 24, 26
 
     M = M_m + I_a (R/r_d)^2 Z Z^T,    c = c_m + I_a (R/r_d)^2 Z Zdot^T alpha_dot.
 
-Where only the torque M alpha_ddot + c + g is needed, ``inverse_dynamics`` sums each body's
-m J^T (J alpha_ddot + h) without forming M: O(N^2) per sample, not O(N^3).  The cables' law
+Where only the torque M alpha_ddot + c + g is needed, ``inverse_dynamics`` carries the bodies'
+forces down the chain (Newton-Euler) without forming M: O(N) per sample, not O(N^3).  The cables' law
 (eq 54) is :mod:`neck_sim.analytic.cable_law`, re-exported here.
 
 Elastic cables use the sign convention of :mod:`neck_sim.analytic.cables`:
@@ -73,14 +73,12 @@ def linkage_constants(params: NeckParams) -> np.ndarray:
 def linkage_kernel(a: np.ndarray, ad: np.ndarray, const: np.ndarray, M: np.ndarray, c: np.ndarray,
                    G: np.ndarray) -> None:
     """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G (see :func:`_linkage_pass`)."""
-    _linkage_pass(a, ad, ad, const, M, c, G, np.empty((5, a.shape[0])), False)
+    _linkage_pass(a, ad, const, M, c, G, np.empty((5, a.shape[0])))
 
 
 @kernel
-def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
-    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G; ``inverse``: M_m add + c_m into c
-    in O(N^2), M untouched (each body's acceleration a = J add + h replaces h in c_m's sum).
-    ``work`` (5, N): scratch.
+def _linkage_pass(a, ad, const, M, c, G, work) -> None:
+    """M_m (N, N), c_m (N,), g (N,) of one sample into M, c, G.  ``work`` (5, N): scratch.
 
     Bodies of joint i: diagonal AD, diagonal BC, top bar CD (slender rods, I = m l^2 / 12).  Frame
     i has angle phi_i = sum_{k<i} alpha_k and origin p_i; the top-bar midpoint m_i(alpha_i) is
@@ -96,8 +94,7 @@ def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
     mass = (const[2], const[2], const[3])
     inertia = (const[2] * L * L / 12.0, const[2] * L * L / 12.0, const[3] * b * b / 12.0)
     grav, payload, l0 = const[4], const[5], const[6]
-    if not inverse:
-        M[:, :] = 0.0
+    M[:, :] = 0.0
     c[:] = 0.0
     G[:] = 0.0
     Jo = work[:2]                     # frame-origin Jacobian J_{p_i}
@@ -105,7 +102,6 @@ def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
     hox, hoy = 0.0, 0.0               # frame-origin acceleration h_{p_i}
     Jx, Jy, Jr = work[2], work[3], work[4]
     phi, phid = 0.0, 0.0
-    ax, bx = -b / 2, b / 2
     for i in range(n):
         sd = side_terms_kernel(a[i], b, L)
         k = corner_terms_kernel(a[i], b, L, sd)
@@ -113,21 +109,8 @@ def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
         dx, dy, ddx, ddy, dddx, dddy = k[6], k[7], k[8], k[9], k[10], k[11]
         cp, sp = np.cos(phi), np.sin(phi)
         w = ad[i]
-        # the three bodies: q, q', q'' in the joint frame and the rotation rate d beta / d alpha_i
         for body in range(3):
-            if body == 0:             # diagonal A-D
-                qx, qy, dqx, dqy, ddqx, ddqy = (ax + dx) / 2, dy / 2, ddx / 2, ddy / 2, dddx / 2, dddy / 2
-                db = ((dx - ax) * ddy - dy * ddx) / (L * L)
-                ddb = ((dx - ax) * dddy - dy * dddx) / (L * L)
-            elif body == 1:           # diagonal B-C
-                qx, qy, dqx, dqy, ddqx, ddqy = (bx + cx) / 2, cy / 2, dcx / 2, dcy / 2, ddcx / 2, ddcy / 2
-                db = ((cx - bx) * dcy - cy * dcx) / (L * L)
-                ddb = ((cx - bx) * ddcy - cy * ddcx) / (L * L)
-            else:                     # top bar C-D
-                qx, qy = (cx + dx) / 2, (cy + dy) / 2
-                dqx, dqy = (dcx + ddx) / 2, (dcy + ddy) / 2
-                ddqx, ddqy = (ddcx + dddx) / 2, (ddcy + dddy) / 2
-                db, ddb = 1.0, 0.0
+            qx, qy, dqx, dqy, ddqx, ddqy, db, ddb = _body_point(body, k, b, L)
             rqx, rqy = cp * qx - sp * qy, sp * qx + cp * qy
             rdx, rdy = cp * dqx - sp * dqy, sp * dqx + cp * dqy
             rddx, rddy = cp * ddqx - sp * ddqy, sp * ddqx + cp * ddqy
@@ -144,24 +127,17 @@ def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
             hy = hoy - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy
             hr = ddb * w * w
             m, I = mass[body], inertia[body]
-            if inverse:               # the body's acceleration replaces h: c gets J^T (J add + h)
-                for kk in range(i + 1):
-                    hx += Jx[kk] * add[kk]
-                    hy += Jy[kk] * add[kk]
-                    hr += Jr[kk] * add[kk]
             # the upper triangle only, mirrored at the end: each term is symmetric bit for bit
             # (products commute, and of Jr[kk], Jr[ll] all but the diagonal's one is exactly 1)
             for kk in range(i + 1):
-                if not inverse:
-                    for ll in range(kk, i + 1):
-                        M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
+                for ll in range(kk, i + 1):
+                    M[kk, ll] += m * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll]) + I * Jr[kk] * Jr[ll]
                 c[kk] += m * (Jx[kk] * hx + Jy[kk] * hy) + I * Jr[kk] * hr
                 G[kk] += grav * m * Jy[kk]
             if body == 2 and i == n - 1 and payload > 0:      # point mass at the head's bar centre
                 for kk in range(n):
-                    if not inverse:
-                        for ll in range(kk, n):
-                            M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
+                    for ll in range(kk, n):
+                        M[kk, ll] += payload * (Jx[kk] * Jx[ll] + Jy[kk] * Jy[ll])
                     c[kk] += payload * (Jx[kk] * hx + Jy[kk] * hy)
                     G[kk] += payload * grav * Jy[kk]
         G[i] += const[7 + i] * ((sd[0] - l0) * sd[1] + (sd[3] - l0) * sd[4])
@@ -180,24 +156,96 @@ def _linkage_pass(a, ad, add, const, M, c, G, work, inverse) -> None:
         hoy += -phid * phid * rmy + 2 * phid * w * rdmx + w * w * (sp * ddmx + cp * ddmy)
         phi += a[i]
         phid += w
-    if not inverse:
-        for kk in range(n):
-            for ll in range(kk):
-                M[kk, ll] = M[ll, kk]
+    for kk in range(n):
+        for ll in range(kk):
+            M[kk, ll] = M[ll, kk]
+
+
+@kernel
+def _body_point(body, k, b, L):
+    """Body ``body`` of a joint (0: diagonal A-D, 1: diagonal B-C, 2: top bar C-D) in the joint's
+    frame: its centre q (m) and the derivatives q', q'' along alpha, the rotation rate d beta /
+    d alpha and its derivative, from the corners' terms ``k`` (``corner_terms_kernel``)."""
+    cx, cy, dcx, dcy, ddcx, ddcy = k[0], k[1], k[2], k[3], k[4], k[5]
+    dx, dy, ddx, ddy, dddx, dddy = k[6], k[7], k[8], k[9], k[10], k[11]
+    if body == 0:
+        ax = -b / 2
+        return ((ax + dx) / 2, dy / 2, ddx / 2, ddy / 2, dddx / 2, dddy / 2,
+                ((dx - ax) * ddy - dy * ddx) / (L * L), ((dx - ax) * dddy - dy * dddx) / (L * L))
+    if body == 1:
+        bx = b / 2
+        return ((bx + cx) / 2, cy / 2, dcx / 2, dcy / 2, ddcx / 2, ddcy / 2,
+                ((cx - bx) * dcy - cy * dcx) / (L * L), ((cx - bx) * ddcy - cy * ddcx) / (L * L))
+    return ((cx + dx) / 2, (cy + dy) / 2, (dcx + ddx) / 2, (dcy + ddy) / 2, (ddcx + dddx) / 2, (ddcy + dddy) / 2,
+            1.0, 0.0)
+
+
+@kernel
+def _inverse_pass(a, ad, add, const, tau, work) -> None:
+    """tau = M_m add + c_m + g (eq 30's left-hand side) of one sample into tau (N,) N m in O(N),
+    M_m never formed.  ``work`` (8, N): scratch.
+
+    The same bodies, frames and Jacobians as :func:`_linkage_pass`, summed the other way round
+    (Newton-Euler): a forward pass gives each body's acceleration J add + h (the frame origin's
+    carried from joint to joint, its rotation phi_ddot = sum_{k<i} add_k) and its force
+    F = m (acceleration + gravity along +y, the potential's gradient) and moment I beta_ddot.  A
+    body of joint i > k has J's column k = R_k m_k' + S (x - p_{k+1}) (S: rotation by +90 deg,
+    x its centre, p_{k+1} the origin of frame k+1) and rotation column 1, so joint k receives
+    R_k m_k' . F_{>k} + M_{>k}: the sum F_{>k} of the forces of the bodies above joint k and their
+    moment M_{>k} about p_{k+1}, which a backward pass carries down the chain.
+    """
+    n = a.shape[0]
+    b, L = const[0], const[1]
+    mass = (const[2], const[2], const[3])
+    inertia = (const[2] * L * L / 12.0, const[2] * L * L / 12.0, const[3] * b * b / 12.0)
+    grav, payload, l0 = const[4], const[5], const[6]
+    own, fx, fy, mo, rmx, rmy, rdmx, rdmy = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
+    aox, aoy = 0.0, 0.0               # acceleration of the frame origin p_i
+    phi, phid, phidd = 0.0, 0.0, 0.0
+    for i in range(n):
+        sd = side_terms_kernel(a[i], b, L)
+        k = corner_terms_kernel(a[i], b, L, sd)
+        cp, sp = np.cos(phi), np.sin(phi)
+        w, u = ad[i], add[i]
+        t_own = const[7 + i] * ((sd[0] - l0) * sd[1] + (sd[3] - l0) * sd[4])    # side springs
+        f_x, f_y, m_o = 0.0, 0.0, 0.0
+        for body in range(3):
+            qx, qy, dqx, dqy, ddqx, ddqy, db, ddb = _body_point(body, k, b, L)
+            rqx, rqy = cp * qx - sp * qy, sp * qx + cp * qy
+            rdx, rdy = cp * dqx - sp * dqy, sp * dqx + cp * dqy
+            rddx, rddy = cp * ddqx - sp * ddqy, sp * ddqx + cp * ddqy
+            accx = aox - phidd * rqy - phid * phid * rqx - 2 * phid * w * rdy + w * w * rddx + u * rdx
+            accy = aoy + phidd * rqx - phid * phid * rqy + 2 * phid * w * rdx + w * w * rddy + u * rdy
+            m = mass[body]
+            if body == 2 and i == n - 1:      # the payload: a point mass at the head's bar centre
+                m += payload
+            px, py = m * accx, m * (accy + grav)
+            nz = inertia[body] * (phidd + db * u + ddb * w * w)
+            t_own += rdx * px + rdy * py + db * nz
+            f_x, f_y, m_o = f_x + px, f_y + py, m_o + (rqx * py - rqy * px + nz)
+            if body == 2:                     # frame i+1: origin p_i + R(phi_i) m_i, m_i the top bar's centre
+                rmx[i], rmy[i], rdmx[i], rdmy[i], aox, aoy = rqx, rqy, rdx, rdy, accx, accy
+        own[i], fx[i], fy[i], mo[i] = t_own, f_x, f_y, m_o
+        phi, phid, phidd = phi + a[i], phid + w, phidd + u
+    f_x, f_y, m_o = 0.0, 0.0, 0.0     # force of the bodies above joint i, moment about p_{i+1}
+    for i in range(n - 1, -1, -1):
+        tau[i] = own[i] + rdmx[i] * f_x + rdmy[i] * f_y + m_o
+        m_o += mo[i] + rmx[i] * f_y - rmy[i] * f_x
+        f_x, f_y = f_x + fx[i], f_y + fy[i]
 
 
 @kernel
 def _linkage_rows(a, ad, const, M, c, G) -> None:
     work = np.empty((5, a.shape[1]))    # scratch shared by the samples
     for r in range(a.shape[0]):
-        _linkage_pass(a[r], ad[r], ad[r], const, M[r], c[r], G[r], work, False)
+        _linkage_pass(a[r], ad[r], const, M[r], c[r], G[r], work)
 
 
 @kernel
-def _inverse_rows(a, ad, add, const, tau, G) -> None:
-    work, none = np.empty((5, a.shape[1])), np.empty((0, 0))
+def _inverse_rows(a, ad, add, const, tau) -> None:
+    work = np.empty((8, a.shape[1]))    # scratch shared by the samples
     for r in range(a.shape[0]):
-        _linkage_pass(a[r], ad[r], add[r], const, none, tau[r], G[r], work, True)
+        _inverse_pass(a[r], ad[r], add[r], const, tau[r], work)
 
 
 def linkage_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, params: NeckParams, *,
@@ -284,19 +332,19 @@ def inverse_dynamics(alpha: npt.ArrayLike, alpha_dot: npt.ArrayLike, alpha_ddot:
                      *, allow_outside_range: bool = False,
                      transmission: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """tau = M alpha_ddot + c + g with the motors (eqs 24, 26 corrected, erratum 5), (..., N) N m,
-    without forming M: the linkage's part per sample in O(N^2) (:func:`_linkage_pass`),
+    without forming M: the linkage's part per sample in O(N) (:func:`_inverse_pass`),
     the motors' I_a (R/r_d)^2 Z (Z^T alpha_ddot + Zdot^T alpha_dot).  alpha, alpha_dot,
     alpha_ddot (..., N) rad, rad/s, rad/s^2; ``transmission`` as in :func:`joint_dynamics`."""
     n = params.n_joints
     a = check_pose(alpha, params, allow_outside_range=allow_outside_range)
     a, ad, add = np.broadcast_arrays(a, check_alpha(alpha_dot, n, "alpha_dot"), check_alpha(alpha_ddot, n, "alpha_ddot"))
     batch, rows = a.shape[:-1], int(np.prod(a.shape[:-1]))
-    tau, G = np.empty((rows, n)), np.empty((rows, n))
-    _inverse_rows(*(np.ascontiguousarray(x.reshape(rows, n)) for x in (a, ad, add)), linkage_constants(params), tau, G)
+    tau = np.empty((rows, n))
+    _inverse_rows(*(np.ascontiguousarray(x.reshape(rows, n)) for x in (a, ad, add)), linkage_constants(params), tau)
     Z, Zdot = transmission or transmission_terms(a, ad, params, allow_outside_range=True)
     zeta = np.einsum("...ij,...i->...j", Z, add) + np.einsum("...ij,...i->...j", Zdot, ad)
     motors = params.actuation.reflected_inertia * np.einsum("...ij,...j->...i", Z, zeta)
-    return (tau + G).reshape(batch + (n,)) + motors
+    return tau.reshape(batch + (n,)) + motors
 
 
 def gravity_spring_torque(alpha: npt.ArrayLike, params: NeckParams, *, allow_outside_range: bool = False) -> np.ndarray:
