@@ -41,7 +41,10 @@ The level trades against the knee, which the camera's noise in the cable row's e
 and the fitted elastic law (eq 54) move.  A block bootstrap of the level reads 4.0-7.3 % of F on
 the 59.3 s logs of seeds 1-3.  Channel weights from each level's jackknife or bootstrap variance
 and a band-projected fit were tried and leave seed 3 at +11 to +20 % (docs/your-own-neck.md
-section 7).
+section 7).  A longer log does what they do not: on 118 s logs (the 59.3 s ones extended, the same
+waypoints and noise for their first 59 s) seeds 1-3 read +4.5, -0.2, +4.8 % (within 0.99 sigma, the
+sigma 4.5-6.3 % of F), and fresh seeds 12 (cable 2) and 13, run after those, -0.7 and +3.1 %; there
+the bootstrap reads 2.5-3.9 % of F.
 
     >>> from identification.diagnosis.dry_level import dry_level
     >>> parameters = dry_level(ctx, cand, parameters)        # doctest: +SKIP
