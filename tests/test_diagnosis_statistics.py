@@ -121,3 +121,49 @@ def test_minimise_bounded(x_min):
     x = minimise_bounded(f, -1.0, 3.0, xatol=1e-3)
     assert abs(x - x_min) < 2e-3 and all(-1.0 <= c <= 3.0 for c in calls)
     assert minimise_bounded(lambda x: x, 0.0, 1.0, xatol=1e-4) < 1e-3          # minimum at the bound
+
+
+def test_a_held_out_note_quotes_the_p_the_decision_reports():
+    """A candidate whose best channel (cable 2, p 1e-5 times 14 channels and 2 places) beat its
+    pooled held-out p: without own channels it reports that p and the note quotes it; a one-joint
+    term held to the whole score reports it times the 2 comparisons
+    (``materiality.candidate_decision``), and the note quotes that, with the factors counted the
+    same; held to its own channel, the note names no best channel (its p is the channel's)."""
+    import re
+    from types import SimpleNamespace
+
+    from identification.diagnosis.candidate import BestChannel, held_out_note
+    from identification.diagnosis.materiality import candidate_decision
+
+    alpha_c = 0.01 / 10
+    settings = SimpleNamespace(min_improvement=0.02, borderline=0.1, borderline_decades=0.3)
+    ctx = SimpleNamespace(settings=settings, alpha_candidate=alpha_c,
+                          candidate_margins=lambda c: c.margins(alpha_c, 0.02),
+                          candidate_significant=lambda c: c.significant(alpha_c, 0.02))
+    channel = BestChannel("cable 2", 28, 0.004)
+    whole = Comparison(0.05, 0.05, 28 * 1e-5, 1e-6)
+
+    def quoted(note):
+        found = re.fullmatch(r"held out on its best channel \(cable 2\): Wilcoxon p (\S+) with (\d+) places "
+                             r"\(pooled (\S+)\)", note)
+        return found.group(1), int(found.group(2)), found.group(3)
+
+    _, held, _, note = candidate_decision(ctx, whole, None)
+    assert quoted(held_out_note(channel, held, None, note)) == (f"{held.p_holdout:.2g}", 28, "0.004")
+    weak = Comparison(0.01, 0.01, 0.5, 0.5)                         # its own channel: nothing there
+    _, held, _, note = candidate_decision(ctx, whole, weak)
+    assert held.p_holdout == pytest.approx(2 * 28e-5)
+    assert quoted(held_out_note(channel, held, weak, note)) == (f"{held.p_holdout:.2g}", 56, "0.008")
+    strong = Comparison(0.4, 0.4, 1e-9, 1e-9)                       # its own channel: a clear gain
+    _, held, _, note = candidate_decision(ctx, whole, strong)
+    assert held.p_holdout == pytest.approx(2e-9) and held_out_note(channel, held, strong, note) == ""
+
+
+def test_the_method_says_which_test_the_held_out_p_is():
+    """The method text (JSON ``method``, the report's Method list) names the tests a candidate's
+    held-out p may be, the best channel only when the settings read it."""
+    from identification.diagnosis import DiagnosisSettings, method_text
+
+    on, off = method_text(DiagnosisSettings()), method_text(DiagnosisSettings(channel_holdout=False))
+    assert "best residual channel" in on["held_out_p"] and "best residual channel" not in off["held_out_p"]
+    assert all("own channel" in m["held_out_p"] and "places" in m["held_out_p"] for m in (on, off))

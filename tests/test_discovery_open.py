@@ -277,3 +277,45 @@ def test_a_play_on_every_motor_is_not_read_as_a_camera_delay(multisine):
     spec, diag = multisine("backlash_all", 2)
     assert diag.verdict == "backlash", (spec.description, diag.verdict)
     assert len(diag.findings[0].cables) >= 3, diag.findings[0].cables
+
+
+def test_a_candidates_note_quotes_the_held_out_p_it_reports(tmp_path):
+    """A hinge of joint 3 (multisine seed 2), two steps.  At step 2 the spring error on joint 3 is
+    held to its own channel (held-out p 0.92 with its factors), while its best channel, cable 1,
+    gives 0.72 with 42 places: the note quoted that p beside the own channel's as if it were the one
+    reported.  On every candidate of both steps: a note naming the best channel quotes the p the
+    candidate reports, which is that channel's one-sided Wilcoxon p (recomputed here from the stored
+    cross-validated residuals) times the N + C channels, the term's places and, for a one-joint
+    term, the 2 comparisons it may be held to; a candidate held to its own channel names no other."""
+    import re
+
+    import numpy as np
+
+    from identification.diagnosis.candidate import channel_names
+    from identification.diagnosis.statistics import channel_wilcoxon_p
+
+    spec = make_spec("joint_friction", 2)
+    path = simulate(tmp_path / "hinge.mcap", spec, 2, excitation=Multisine.draw(spec.params, 2, duration=12.2))
+    diag = diagnose_log(path, model=spec.model, settings=DiagnosisSettings(resimulate=False, max_steps=2))
+    n, C = diag.data.n, diag.data.C
+    quoted, own = 0, 0
+    for st in diag.steps:
+        for c in st.candidates:
+            if c.fit is None:
+                continue
+            ident = c.term.identification
+            if c.note.startswith("measured on its own channel"):
+                own += 1
+                assert "best channel" not in c.note, (c.term, c.p_holdout, c.note)
+            found = re.search(r"held out on its best channel \((.+?)\): Wilcoxon p (\S+) with (\d+) places", c.note)
+            if found is None:
+                continue
+            quoted += 1
+            p = channel_wilcoxon_p(st.base.cv, c.model.cv, diag.split)
+            k = int(np.argmin(p))
+            factor = (n + C) * ident.places(dict(c.term.shape), n, C) * (1 if ident.joint_of(dict(c.term.shape)) is None
+                                                                         else 2)
+            assert found.group(1) == channel_names(n, C)[k] and int(found.group(3)) == factor, (c.term, c.note)
+            assert c.p_holdout == pytest.approx(min(1.0, factor * p[k]), rel=1e-12), (c.term, c.note)
+            assert found.group(2) == f"{c.p_holdout:.2g}", (c.term, c.p_holdout, c.note)
+    assert quoted >= 5 and own >= 1, (quoted, own)

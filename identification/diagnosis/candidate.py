@@ -12,7 +12,7 @@ from identification.diagnosis.candidates import Fit, Term, fit_model
 from identification.diagnosis.fitting import Evaluated, StepContext
 from identification.diagnosis.search import (_refine_between, located_comparison, refined_shape, search_one_joint,
                                               search_shape, shape_grid, training_p, trial_score)
-from identification.diagnosis.materiality import candidate_decision, own_comparison
+from identification.diagnosis.materiality import CHANNEL_TESTS, OWN_CHANNEL, candidate_decision, own_comparison
 from identification.diagnosis.support import log_support, separability_gap, unsupported_items
 from identification.diagnosis.statistics import (Comparison, block_scores, channel_wilcoxon_p, clearly_nonzero,
                                                  explained_share, in_band, margin_ratio, score)
@@ -63,7 +63,7 @@ class CandidateScore:
     improvement: float            # 1 - S_cv(candidate) / S_cv(base)
     holdout_improvement: float    # the same on the primary held-out fold only
     block_ratio: dict             # cross-validated S_cand / S_base per block (torque, cable)
-    p_holdout: float              # Wilcoxon over chunks of the cross-validated residuals
+    p_holdout: float              # held-out Wilcoxon: whole score, best or own channel (method_text)
     p_train: float                # F-test on the primary training folds
     valid: bool                   # physical sign of the fitted magnitudes
     significant: bool
@@ -253,28 +253,57 @@ def channel_names(n_joints: int, n_cables: int) -> list[str]:
     return [f"joint torque {j + 1}" for j in range(n_joints)] + [f"cable {i + 1}" for i in range(n_cables)]
 
 
-def channel_holdout(ctx: StepContext, ev: Evaluated, whole: Comparison, term: Term) -> tuple[Comparison, str]:
+@dataclass(frozen=True)
+class BestChannel:
+    """The residual channel whose held-out Wilcoxon p stood in for the pooled one
+    (:func:`channel_holdout`): its ``name``, the ``factor`` on its p (its N + C channels times the
+    term's places) and the ``pooled`` p it beat (times the places)."""
+
+    name: str
+    factor: int
+    pooled: float
+
+    def note(self, p_holdout: float, tests: int = 1) -> str:
+        """The candidate's note on its held-out test: ``p_holdout`` the p it reports, ``tests`` the
+        factor applied to both p values since (:data:`~identification.diagnosis.materiality.
+        CHANNEL_TESTS` for a one-joint term), counted in its places as in the pooled p."""
+        return (f"held out on its best channel ({self.name}): Wilcoxon p {p_holdout:.2g} with "
+                f"{tests * self.factor} places (pooled {min(1.0, tests * self.pooled):.2g})")
+
+
+def channel_holdout(ctx: StepContext, ev: Evaluated, whole: Comparison, term: Term
+                    ) -> tuple[Comparison, BestChannel | None]:
     """``whole`` (the candidate's comparison, p values times its places) with its held-out p the
     smaller of the pooled one and its best channel's (:func:`~identification.diagnosis.statistics.
-    channel_wilcoxon_p`) times the N + C channels it may pick and its places (Bonferroni), and a
-    note naming that channel ("" when the pooled test stands).  An effect on one cable or joint
+    channel_wilcoxon_p`) times the N + C channels it may pick and its places (Bonferroni), and
+    that channel (None when the pooled test stands).  An effect on one cable or joint
     shows on a few channels; pooled with the others' noise its held-out gain can fail the test its
     training F-test passes by decades (a Stribeck bump on cable 2 of a 12 s multisine: pooled p
     0.0013, joint torque 2 alone 2.5e-9).  The candidate still needs its improvement of the whole
     score and its training F-test on it, which bound its false-alarm level at alpha / K whatever
     the held-out test; a clean log's best channel is calibrated in docs/diagnosis.md."""
     if not ctx.settings.channel_holdout:
-        return whole, ""
+        return whole, None
     p = channel_wilcoxon_p(ctx.base.cv, ev.cv, ctx.split)
     k = int(np.argmin(p))
     factor = p.size * term.identification.places(dict(term.shape), ctx.data.n, ctx.data.C)
     p_best = min(1.0, factor * float(p[k]))
     if not p_best < whole.p_holdout:
-        return whole, ""
-    name = channel_names(ctx.data.n, ctx.data.C)[k]
-    note = (f"held out on its best channel ({name}): Wilcoxon p {p_best:.2g} with {factor} places "
-            f"(pooled {whole.p_holdout:.2g})")
-    return dataclasses.replace(whole, p_holdout=p_best), note
+        return whole, None
+    return (dataclasses.replace(whole, p_holdout=p_best),
+            BestChannel(channel_names(ctx.data.n, ctx.data.C)[k], factor, whole.p_holdout))
+
+
+def held_out_note(channel: BestChannel | None, decided: Comparison, own: Comparison | None, own_note: str) -> str:
+    """The note on a candidate's held-out test once :func:`~identification.diagnosis.materiality.
+    candidate_decision` returned the comparison it is held to (``decided``, its note ``own_note``;
+    ``own`` the own-channel comparison it was given): its best ``channel``'s sentence with the p
+    ``decided`` reports, which for a one-joint term (``own`` not None) carries
+    :data:`~identification.diagnosis.materiality.CHANNEL_TESTS` more; "" when the pooled test stood
+    or the term is held to its own channel, whose p is then the one reported."""
+    if channel is None or own_note.startswith(OWN_CHANNEL):
+        return ""
+    return channel.note(decided.p_holdout, 1 if own is None else CHANNEL_TESTS)
 
 
 def evaluate_candidate(ctx: StepContext, name: str) -> CandidateScore:
@@ -361,10 +390,12 @@ def _scored(ctx: StepContext, best) -> CandidateScore:
     _, term, fit = best
     ev = Evaluated(fit, ctx.cross_validate(fit))
     added = ctx.added_params(fit.n_params, term)
-    whole, channel_note = channel_holdout(ctx, ev, located_comparison(ctx.compare(ctx.base, ev, added), term,
-                                                                       ctx.data.n, ctx.data.C), term)
+    whole, channel = channel_holdout(ctx, ev, located_comparison(ctx.compare(ctx.base, ev, added), term,
+                                                                  ctx.data.n, ctx.data.C), term)
     # a one-joint term is also measured where it acts (its joint's torque channel)
-    passes, cmp, margins, own_note = candidate_decision(ctx, whole, own_comparison(ctx, ctx.base, ev, term, added))
+    own = own_comparison(ctx, ctx.base, ev, term, added)
+    passes, cmp, margins, own_note = candidate_decision(ctx, whole, own)
+    channel_note = held_out_note(channel, cmp, own, own_note)
     every = np.ones(ctx.data.S, bool)
     bb = block_scores(ctx.base.cv, every, ctx.scales, ctx.data.n)
     bc = block_scores(ev.cv, every, ctx.scales, ctx.data.n)

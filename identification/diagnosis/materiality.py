@@ -49,9 +49,10 @@ from identification.filtering import lowpass
 from identification.diagnosis.statistics import (Comparison, channel_chunk_reductions, effective_samples, f_test_p,
                                                  improvement, in_band, mean_square, wilcoxon_p)
 
-__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "UNDECIDED", "UNDECIDED_P", "own_band_hz", "in_own_band", "project_band",
-           "p_times", "own_channels", "own_train_ms", "own_min_improvement", "own_comparison", "OwnComparison",
-           "deciding_length", "undecided_note", "undecided_lines", "own_significant", "candidate_decision"]
+__all__ = ["REFERENCE_TORQUE_CHANNELS", "CHANNEL_TESTS", "OWN_BAND", "UNDECIDED", "UNDECIDED_P", "OWN_CHANNEL",
+           "own_band_hz", "in_own_band", "project_band", "p_times", "own_channels", "own_train_ms",
+           "own_min_improvement", "own_comparison", "OwnComparison", "deciding_length", "undecided_note",
+           "undecided_lines", "own_significant", "candidate_decision"]
 
 #: The torque channels of the neck on which the step's minimum improvement was set (the paper's
 #: 3-joint prototype): on it, one joint's channel weighs 1 / (2 x 3) of S.
@@ -168,6 +169,10 @@ def deciding_length(own: OwnComparison, alpha: float) -> float | None:
         lo, hi = (lo, mid) if passes(mid) else (mid, hi)
     return own.duration_s * hi / n
 
+
+#: How :func:`candidate_decision`'s note starts when it holds a one-joint term to its own channel
+#: (its p values are then that channel's, not the whole score's or its best channel's).
+OWN_CHANNEL = "measured on its own channel"
 
 #: How :func:`candidate_decision` says that a one-joint term's own channel lacks samples (the
 #: start of the sentence; :func:`undecided_lines` finds it in the candidates' notes).
@@ -289,7 +294,7 @@ def candidate_decision(ctx, whole: Comparison, own: Comparison | None) -> tuple[
     if in_band(own_margins, *band) <= in_band(margins, *band):
         passes = ctx.candidate_significant(whole)
         return passes, whole, margins, "" if passes else undecided
-    note = (f"measured on its own channel (the joint's torque): improvement {100 * own.improvement:.1f} % "
+    note = (f"{OWN_CHANNEL} (the joint's torque): improvement {100 * own.improvement:.1f} % "
             f"(minimum {100 * own_min:.0f} %), whole score {100 * whole.improvement:.2f} %")
     passes = own_significant(own, whole, ctx.alpha_candidate, s.min_improvement)
     return passes, dataclasses.replace(whole, p_holdout=own.p_holdout, p_train=own.p_train), own_margins, \

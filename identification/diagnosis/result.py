@@ -144,6 +144,14 @@ def method_text(s: DiagnosisSettings) -> dict:
                         "step (Bonferroni: the step's false-alarm level is alpha), fitted magnitudes of "
                         f"physical sign; a decision within {s.borderline:g} (relative) or {s.borderline_decades:g} "
                         "decades of p of a threshold is borderline",
+        "held_out_p": "a candidate's held-out p (JSON p_holdout_wilcoxon, the report's p (held out)) is the "
+                      "Wilcoxon test's over the chunks of the whole score"
+                      + (" or, when smaller, its best residual channel's times the N + C channels (its note names "
+                         "the channel)" if s.channel_holdout else "")
+                      + "; both p values of a term searched joint by joint or cable by cable are times its places "
+                      "(2 for every joint or cable, 2 N or 2 C on one), and a one-joint term is held to the better "
+                      "of that and its joint's torque channel in its band, both times 2 more (its note says "
+                      "'measured on its own channel' for the latter)",
         "look_alikes": "encompassing test between the leader and every other significant candidate: fitted "
                        "together, the one that adds nothing significant to the other (improvement >= "
                        f"{s.min_improvement / 2:g}, p < {s.alpha:g}) is dropped; if neither adds, the verdict lists "
