@@ -61,11 +61,11 @@ def settle(step: Callable, fit, indices, max_passes: int = MAX_PASSES):
     return fit
 
 
-def own_indices(fit, term) -> list[int]:
+def own_indices(fit, term, n_joints: int, n_cables: int) -> list[int]:
     """Indices into ``fit.value`` of the parameters of ``term``'s own columns (``f_s(1)``, ...,
-    ``c_v(4)``: the name before its parenthesis one of the columns' symbols)."""
-    symbols = {col.symbol for col in term.identification.columns}
-    return [k for k, n in enumerate(fit.names) if n.split("(")[0] in symbols]
+    ``c_v(4)``: their ``Column.names`` on a neck of ``n_joints`` joints and ``n_cables`` cables)."""
+    own = {name for col in term.identification.columns for name in col.names(n_joints, n_cables)}
+    return [k for k, n in enumerate(fit.names) if n in own]
 
 
 def settled_fit(ctx, fit, terms):
@@ -74,7 +74,7 @@ def settled_fit(ctx, fit, terms):
     (:func:`own_indices`); ``fit`` itself when they have none."""
     from identification.diagnosis.candidates import fit_model
 
-    indices = sorted({k for term in terms for k in own_indices(fit, term)})
+    indices = sorted({k for term in terms for k in own_indices(fit, term, ctx.data.n, ctx.data.C)})
     if not indices:
         return fit
     return settle(lambda f: fit_model(ctx.data, f.model, ctx.split.train, ctx.scales, f.state, iterations=1),
